@@ -1,0 +1,271 @@
+"""Configuration schemas (dataclasses) for the environments.
+
+A legged_gym-like hierarchy: `BaseEnvCfg` holds what every task shares (simulation, control,
+observations); `MovingPlatformCfg` adds the platform, trajectories, randomization, curriculum
+and rewards. YAML files and Hydra overrides fill these schemas; `build_env_cfg` merges a plain
+dict onto the defaults (unknown keys are refused by OmegaConf, naming the key) and `validate`
+checks every value range, naming the offending field. Units are in the field names.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, is_dataclass
+from typing import Any
+
+from omegaconf import OmegaConf
+
+from lasmp.envs.moving_platform.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_TERMS
+
+
+class ConfigError(ValueError):
+    """A configuration value is out of range or inconsistent; the message names the field."""
+
+
+def _range(name: str, lo_hi: tuple[float, float] | list[float], lo: float = -math.inf, hi: float = math.inf):
+    if len(lo_hi) != 2:
+        raise ConfigError(f"{name} must be a [low, high] pair, got {list(lo_hi)}")
+    a, b = float(lo_hi[0]), float(lo_hi[1])
+    if not (math.isfinite(a) and math.isfinite(b)) or a > b:
+        raise ConfigError(f"{name} must be a finite [low, high] with low <= high, got {list(lo_hi)}")
+    if a < lo or b > hi:
+        raise ConfigError(f"{name} must lie within [{lo}, {hi}], got {list(lo_hi)}")
+
+
+def _positive(name: str, value: float, allow_zero: bool = False):
+    ok = value >= 0 if allow_zero else value > 0
+    if not (math.isfinite(value) and ok):
+        raise ConfigError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {value}")
+
+
+@dataclass
+class SimCfg:
+    dt_s: float = 0.005  # physics step (ours)
+    decimation: int = 4  # physics steps per policy step -> policy dt 0.02 s (ours)
+    num_threads: int = 0  # Batch worker threads; 0 = all cores
+    solver_iterations: int = 20  # fewer than MuJoCo's 100: contacts converge well before (ours)
+
+    def validate(self, p: str):
+        _positive(f"{p}.dt_s", self.dt_s)
+        if self.dt_s > 0.02:
+            raise ConfigError(f"{p}.dt_s must be <= 0.02 s for stable contacts, got {self.dt_s}")
+        if self.decimation < 1:
+            raise ConfigError(f"{p}.decimation must be >= 1, got {self.decimation}")
+        if self.num_threads < 0:
+            raise ConfigError(f"{p}.num_threads must be >= 0 (0 = all cores), got {self.num_threads}")
+        if self.solver_iterations < 1:
+            raise ConfigError(f"{p}.solver_iterations must be >= 1, got {self.solver_iterations}")
+
+
+@dataclass
+class ControlCfg:
+    action_scale: float = 0.25  # q_target = q_nominal + action_scale * a (legged_gym's A1 value)
+    action_clip: float = 100.0  # actions are clipped to +-action_clip before scaling (rsl_rl convention)
+
+    def validate(self, p: str):
+        _positive(f"{p}.action_scale", self.action_scale)
+        _positive(f"{p}.action_clip", self.action_clip)
+
+
+@dataclass
+class ObservationsCfg:
+    history_length: int = 20  # H, SPEC §7
+    clip: float = 100.0  # every observation is clipped to +-clip (a NaN guard, not a normalizer)
+
+    def validate(self, p: str):
+        if self.history_length < 1:
+            raise ConfigError(f"{p}.history_length must be >= 1, got {self.history_length}")
+        _positive(f"{p}.clip", self.clip)
+
+
+@dataclass
+class DomainRandRanges:
+    """Table B of the paper: one set for training, one for testing."""
+
+    trunk_mass_kg: list[float] = field(default_factory=lambda: [4.0, 5.0])
+    com_shift_m: list[float] = field(default_factory=lambda: [-0.2, 0.2])  # per axis x, y, z
+    foot_friction: list[float] = field(default_factory=lambda: [0.8, 1.2])
+    joint_kp: list[float] = field(default_factory=lambda: [36.0, 44.0])  # per joint
+    joint_kd: list[float] = field(default_factory=lambda: [0.8, 1.2])  # per joint
+    platform_kp_factor: list[float] = field(default_factory=lambda: [1.0, 1.5])  # per axis
+    platform_kd_factor: list[float] = field(default_factory=lambda: [0.02, 0.03])  # per axis
+
+    def validate(self, p: str):
+        _range(f"{p}.trunk_mass_kg", self.trunk_mass_kg, 0.5, 50.0)
+        _range(f"{p}.com_shift_m", self.com_shift_m, -0.5, 0.5)
+        _range(f"{p}.foot_friction", self.foot_friction, 0.0, 5.0)
+        _range(f"{p}.joint_kp", self.joint_kp, 0.0, 500.0)
+        _range(f"{p}.joint_kd", self.joint_kd, 0.0, 50.0)
+        _range(f"{p}.platform_kp_factor", self.platform_kp_factor, 0.0, 100.0)
+        _range(f"{p}.platform_kd_factor", self.platform_kd_factor, 0.0, 100.0)
+
+
+def _test_ranges() -> DomainRandRanges:
+    return DomainRandRanges(
+        trunk_mass_kg=[3.5, 5.5],
+        com_shift_m=[-0.25, 0.25],
+        foot_friction=[0.7, 1.3],
+        joint_kp=[32.0, 48.0],
+        joint_kd=[0.6, 1.4],
+        platform_kp_factor=[0.5, 2.0],
+        platform_kd_factor=[0.01, 0.04],
+    )
+
+
+@dataclass
+class DomainRandCfg:
+    enabled: bool = True  # False: every env gets the nominal parameters
+    split: str = "train"  # which of the two tables below is drawn from: train | test
+    train: DomainRandRanges = field(default_factory=DomainRandRanges)
+    test: DomainRandRanges = field(default_factory=_test_ranges)
+
+    @property
+    def ranges(self) -> DomainRandRanges:
+        return self.train if self.split == "train" else self.test
+
+    def validate(self, p: str):
+        if self.split not in ("train", "test"):
+            raise ConfigError(f"{p}.split must be 'train' or 'test', got {self.split!r}")
+        self.train.validate(f"{p}.train")
+        self.test.validate(f"{p}.test")
+
+
+@dataclass
+class InitStateCfg:
+    yaw_range_rad: list[float] = field(default_factory=lambda: [-math.pi, math.pi])
+    foot_clearance_m: float = 0.001  # feet start this far above the surface: touching, never inside
+
+    def validate(self, p: str):
+        _range(f"{p}.yaw_range_rad", self.yaw_range_rad, -math.pi, math.pi)
+        _positive(f"{p}.foot_clearance_m", self.foot_clearance_m, allow_zero=True)
+        if self.foot_clearance_m > 0.05:
+            raise ConfigError(f"{p}.foot_clearance_m must be <= 0.05 m, got {self.foot_clearance_m}")
+
+
+@dataclass
+class PlatformCfg:
+    size_m: list[float] = field(default_factory=lambda: [2.0, 2.0, 0.2])  # width, length, height, SPEC §3
+    mass_kg: float = 800.0  # ~65x the robot: its weight barely disturbs the platform (ours)
+    friction: float = 1.0  # surface friction; a contact uses the larger of foot and platform values
+    # nominal PD per axis, as a 2nd-order system at factor 1: kp = M w^2 with w = 2 pi bandwidth_hz,
+    # kd = 2 zeta M w / kd_factor_ref so that the paper's damping factor ~0.025 gives damping ratio zeta.
+    bandwidth_hz: float = 4.0  # (ours) tracks 10-s trajectories closely but not perfectly
+    damping_ratio: float = 0.7  # (ours) at kd factor == kd_factor_ref
+    kd_factor_ref: float = 0.025  # midpoint of the paper's training damping factor range
+    ref_lead_s: float = 0.01  # reference is held over a policy step at t + lead (mid-step) (ours)
+
+    def validate(self, p: str):
+        if len(self.size_m) != 3 or min(self.size_m) <= 0:
+            raise ConfigError(f"{p}.size_m must be three positive lengths, got {list(self.size_m)}")
+        for name in ("mass_kg", "friction", "bandwidth_hz", "damping_ratio", "kd_factor_ref"):
+            _positive(f"{p}.{name}", getattr(self, name))
+        _positive(f"{p}.ref_lead_s", self.ref_lead_s, allow_zero=True)
+
+
+@dataclass
+class TrajectoryCfg:
+    split: str = "train"  # waypoint coordinate ranges: train | test (identical coordinates, N differs)
+    duration_s: float = 10.0  # T, also the episode length
+    file: str | None = None  # a trajectory file (lasmp-trajectories .npz): episodes replay its rows in order
+
+    def validate(self, p: str):
+        if self.split not in ("train", "test"):
+            raise ConfigError(f"{p}.split must be 'train' or 'test', got {self.split!r}")
+        _positive(f"{p}.duration_s", self.duration_s)
+
+
+@dataclass
+class CurriculumCfg:
+    enabled: bool = True  # False: N is drawn uniformly from the split's range every episode
+    level_min: int = 5
+    level_max: int = 15
+    promote_success_rate: float = 0.8
+    window_episodes: int = 200  # (ours) episodes at the current level over which success is measured
+    replay_lower_fraction: float = 0.2  # (ours) share of episodes that replay mastered levels
+
+    def validate(self, p: str):
+        if not 1 <= self.level_min <= self.level_max:
+            raise ConfigError(f"{p}: need 1 <= level_min <= level_max, got {self.level_min}, {self.level_max}")
+        if not 0 < self.promote_success_rate <= 1:
+            raise ConfigError(f"{p}.promote_success_rate must be in (0, 1], got {self.promote_success_rate}")
+        if self.window_episodes < 1:
+            raise ConfigError(f"{p}.window_episodes must be >= 1, got {self.window_episodes}")
+        if not 0 <= self.replay_lower_fraction < 1:
+            raise ConfigError(f"{p}.replay_lower_fraction must be in [0, 1), got {self.replay_lower_fraction}")
+
+
+@dataclass
+class RewardsCfg:
+    weights: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_REWARD_WEIGHTS))
+    sigma_center_m: float = 1.2  # k2
+    sigma_alignment: float = 0.3  # k4
+    sigma_level_rad: float = 0.2  # k6
+    sigma_height_m: float = 0.1  # k8
+    h_des_m: float = 0.37  # trunk height in the platform frame (0.27 m above the 0.1-m-high top surface)
+    f_tol_n: float = 50.0
+    t_swing_des_s: float = 0.1
+    t_contact_des_s: float = 0.5
+
+    def validate(self, p: str):
+        unknown = sorted(set(self.weights) - set(REWARD_TERMS))
+        if unknown:
+            raise ConfigError(f"{p}.weights: unknown reward term(s) {unknown}; valid terms: {sorted(REWARD_TERMS)}")
+        for name, w in self.weights.items():
+            if not math.isfinite(float(w)):
+                raise ConfigError(f"{p}.weights.{name} must be finite, got {w}")
+        for f in fields(self):
+            if f.name != "weights":
+                _positive(f"{p}.{f.name}", getattr(self, f.name))
+
+
+@dataclass
+class TerminationCfg:
+    fall_below_top_m: float = 0.0  # a trunk CoM lower than the top surface + this counts as a fall
+    footprint_margin_m: float = 0.0  # a trunk CoM beyond the platform's edge + this counts as off
+    max_joint_vel_rad_s: float = 200.0  # beyond this the simulation is considered diverged (a fault)
+
+    def validate(self, p: str):
+        _positive(f"{p}.max_joint_vel_rad_s", self.max_joint_vel_rad_s)
+
+
+@dataclass
+class BaseEnvCfg:
+    num_envs: int = 256
+    seed: int = 0
+    sim: SimCfg = field(default_factory=SimCfg)
+    control: ControlCfg = field(default_factory=ControlCfg)
+    observations: ObservationsCfg = field(default_factory=ObservationsCfg)
+
+    def validate(self, p: str = "env"):
+        if self.num_envs < 1:
+            raise ConfigError(f"{p}.num_envs must be >= 1, got {self.num_envs}")
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if is_dataclass(value):
+                value.validate(f"{p}.{f.name}")
+
+
+@dataclass
+class MovingPlatformCfg(BaseEnvCfg):
+    init_state: InitStateCfg = field(default_factory=InitStateCfg)
+    domain_rand: DomainRandCfg = field(default_factory=DomainRandCfg)
+    platform: PlatformCfg = field(default_factory=PlatformCfg)
+    trajectory: TrajectoryCfg = field(default_factory=TrajectoryCfg)
+    curriculum: CurriculumCfg = field(default_factory=CurriculumCfg)
+    rewards: RewardsCfg = field(default_factory=RewardsCfg)
+    termination: TerminationCfg = field(default_factory=TerminationCfg)
+
+
+def build_env_cfg(overrides: dict[str, Any] | None = None, schema: type = MovingPlatformCfg):
+    """Defaults of `schema` merged with a (nested) dict of overrides, validated.
+
+    Unknown keys raise `ConfigError` naming the key; values are type-checked by OmegaConf.
+    """
+    base = OmegaConf.structured(schema)
+    try:
+        merged = OmegaConf.merge(base, OmegaConf.create(overrides or {}))
+    except Exception as err:  # omegaconf's ConfigKeyError / ValidationError carry the full key
+        raise ConfigError(f"invalid environment config: {err}") from err
+    cfg = OmegaConf.to_object(merged)
+    cfg.validate()
+    return cfg

@@ -1,0 +1,69 @@
+"""CPU physics backend: all envs of one model on `mujoco.batch.Batch` (MuJoCo >= 4.0).
+
+One call steps every simulation `nstep` substeps on a C thread pool (no Python loop over envs
+or substeps). The batch is persistent (one MjData per env) so that the stage computed after a
+step (`mjSTAGE_VEL`: positions, velocities and their sensors current at the new state) is
+reused by the next step at no extra cost; acceleration-stage sensors (accelerometer, contact
+sensors) then describe the last substep, 1 physics dt old.
+
+Faults are data: `step` returns a boolean mask of simulations that raised a MuJoCo error,
+raised a warning (e.g. a bad qacc that made MuJoCo reset the data itself) or hold non-finite
+state. The caller terminates and resets those envs alone.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import mujoco.batch
+import numpy as np
+
+_STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
+_STAGE_NONE = int(mujoco.mjtStage.mjSTAGE_NONE)
+
+
+class CpuBatchSim:
+    def __init__(self, model: mujoco.MjModel, num_envs: int, num_threads: int = 0):
+        self.model = model
+        self.num_envs = num_envs
+        self.batch = mujoco.batch.Batch(model, num_envs, nthread=num_threads, persistent=True)
+        b = self.batch
+        # live views: state rows (writable) and derived outputs (read-only, refreshed by every call)
+        self.qpos = b.bind("qpos")
+        self.qvel = b.bind("qvel")
+        self.ctrl = b.bind("ctrl")
+        self.sensordata = b.bind("sensordata")
+        self.site_xpos = b.bind("site_xpos")
+        self.actuator_force = b.bind("actuator_force")
+        self._warnings_seen = self._warning_count().copy()
+
+    def _warning_count(self) -> np.ndarray:
+        return self.batch.warning[:, :, 1].sum(axis=1)  # (nsim,) total warnings raised so far
+
+    def expand(self, name: str) -> np.ndarray:
+        """Per-env values of a model field, (num_envs, ...), live."""
+        return self.batch.expand(name)
+
+    def step(self, nstep: int) -> np.ndarray:
+        """Advance all envs `nstep` physics steps; return the (num_envs,) mask of faulted envs."""
+        faulted = np.zeros(self.num_envs, dtype=bool)
+        try:
+            self.batch.step(nstep=nstep, stage=_STAGE_VEL)
+        except mujoco.batch.SimulationError as err:
+            faulted[err.ids] = True
+        warnings = self._warning_count()
+        faulted |= warnings != self._warnings_seen
+        self._warnings_seen[:] = warnings
+        faulted |= ~np.isfinite(self.qpos).all(axis=1) | ~np.isfinite(self.qvel).all(axis=1)
+        faulted |= ~np.isfinite(self.sensordata).all(axis=1)
+        return faulted
+
+    def reset(self, ids: np.ndarray, qpos: np.ndarray, qvel: np.ndarray, ctrl: np.ndarray, set_const: bool):
+        """Fresh data for envs `ids` at the given state, derived quantities computed (mj_forward)."""
+        self.batch.reset(ids, stage=_STAGE_NONE)
+        if set_const:  # masses / CoMs changed: refresh the constants mj_setConst derives from them
+            self.batch.set_const(ids)
+        self.qpos[ids] = qpos
+        self.qvel[ids] = qvel
+        self.ctrl[ids] = ctrl
+        self.batch.forward(ids)
+        self._warnings_seen[ids] = self._warning_count()[ids]

@@ -1,0 +1,120 @@
+"""Waypoint curriculum (SPEC §5): the task level is the number of trajectory waypoints N.
+
+Training starts at N = level_min and the level rises by one when the success rate at the
+current level reaches `promote_success_rate`, up to level_max. Our choices (SPEC leaves open):
+- Success = the episode reached the time-out T without a collision.
+- The rate is measured over the last `window_episodes` episodes that ended while the env
+  played the current level; episodes of replayed lower levels do not count.
+- The window is cleared at each promotion, and promotion needs a full window.
+- After a promotion, a fraction `replay_lower_fraction` of new episodes draws N uniformly
+  from the mastered levels [level_min, level - 1] (against forgetting); the rest use N = level.
+- The level and the window survive a resume via `state_dict()` / `load_state_dict()`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Any
+
+import numpy as np
+
+
+class WaypointCurriculum:
+    """Success-rate-driven scheduler of the number of waypoints N."""
+
+    def __init__(
+        self,
+        level_min: int = 5,
+        level_max: int = 15,
+        promote_success_rate: float = 0.8,
+        window_episodes: int = 200,
+        replay_lower_fraction: float = 0.2,
+    ) -> None:
+        if int(level_min) != level_min or level_min < 1:
+            raise ValueError(f"level_min must be an integer ≥ 1, got {level_min}")
+        if int(level_max) != level_max or level_max < level_min:
+            raise ValueError(f"level_max must be an integer ≥ level_min, got {level_max}")
+        if not (0.0 < promote_success_rate <= 1.0):
+            raise ValueError(f"promote_success_rate must be in (0, 1], got {promote_success_rate}")
+        if int(window_episodes) != window_episodes or window_episodes < 1:
+            raise ValueError(f"window_episodes must be an integer ≥ 1, got {window_episodes}")
+        if not (0.0 <= replay_lower_fraction < 1.0):
+            raise ValueError(f"replay_lower_fraction must be in [0, 1), got {replay_lower_fraction}")
+        self.level_min = int(level_min)
+        self.level_max = int(level_max)
+        self.promote_success_rate = float(promote_success_rate)
+        self.window_episodes = int(window_episodes)
+        self.replay_lower_fraction = float(replay_lower_fraction)
+        self._level = self.level_min
+        self._window: deque[bool] = deque(maxlen=self.window_episodes)
+
+    @property
+    def level(self) -> int:
+        """Current task level N."""
+        return self._level
+
+    @property
+    def success_rate(self) -> float:
+        """Success rate over the current window; nan if it is empty."""
+        if not self._window:
+            return math.nan
+        return sum(self._window) / len(self._window)
+
+    def sample_levels(self, num: int, rng: np.random.Generator) -> np.ndarray:
+        """N for `num` new episodes (int64 array)."""
+        levels = np.full(num, self._level, dtype=np.int64)
+        if self._level > self.level_min and self.replay_lower_fraction > 0.0:
+            replay = rng.random(num) < self.replay_lower_fraction
+            levels[replay] = rng.integers(self.level_min, self._level, size=int(replay.sum()))
+        return levels
+
+    def update(self, levels: np.ndarray, success: np.ndarray) -> bool:
+        """Feed finished episodes (their N and success flag); True if the level rose."""
+        levels = np.asarray(levels).reshape(-1)
+        success = np.asarray(success, dtype=bool).reshape(-1)
+        if levels.shape != success.shape:
+            raise ValueError(
+                f"levels and success must have the same length, got {levels.shape} and {success.shape}"
+            )
+        self._window.extend(success[levels == self._level].tolist())
+        if self._level >= self.level_max or len(self._window) < self.window_episodes:
+            return False
+        # integer comparison with a small tolerance, so 160/200 promotes at 0.8 exactly
+        if sum(self._window) >= self.promote_success_rate * self.window_episodes - 1e-9:
+            self._level += 1
+            self._window.clear()
+            return True
+        return False
+
+    def state_dict(self) -> dict[str, Any]:
+        """Level and window contents (plain Python types, safe for torch.save)."""
+        return {"level": self._level, "window": list(self._window)}
+
+    def load_state_dict(self, d: dict[str, Any]) -> None:
+        """Restore `state_dict()` output; a malformed dict raises ValueError naming the key."""
+        if not isinstance(d, dict):
+            raise ValueError(f"curriculum state must be a dict, got {type(d).__name__}")
+        for key in ("level", "window"):
+            if key not in d:
+                raise ValueError(f"curriculum state is missing key {key!r}")
+        level = d["level"]
+        if (
+            isinstance(level, bool)
+            or not isinstance(level, (int, np.integer))
+            or not (self.level_min <= level <= self.level_max)
+        ):
+            raise ValueError(
+                f"curriculum state 'level' must be an int in "
+                f"[{self.level_min}, {self.level_max}], got {level!r}"
+            )
+        window = d["window"]
+        if not isinstance(window, (list, tuple)) or not all(isinstance(x, (bool, np.bool_)) for x in window):
+            raise ValueError("curriculum state 'window' must be a list of bools")
+        if len(window) > self.window_episodes:
+            raise ValueError(
+                f"curriculum state 'window' has {len(window)} entries, more than "
+                f"window_episodes={self.window_episodes}"
+            )
+        self._level = int(level)
+        self._window = deque((bool(x) for x in window), maxlen=self.window_episodes)

@@ -1,0 +1,128 @@
+"""The moving-platform world, built in code with `mujoco.MjSpec`.
+
+World = our A1 (attached from its MJCF) + a 2 x 2 x 0.2 m box platform on six actuated
+joints. The platform chain is slide x, y, z (world axes), then hinge yaw (z), pitch (y),
+roll (x), so its joint angles are ZYX Euler angles: R_wp = Rz(yaw) Ry(pitch) Rx(roll), the
+convention of `lasmp.envs.trajectories`. Every platform joint is driven by a PD made of two
+actuators, a `position` one (kp, ctrl = reference position) and a `velocity` one (kd, ctrl =
+reference velocity), so that force = kp (x_ref - x) + kd (v_ref - v) runs inside the physics
+substeps. The platform is gravity-compensated (`gravcomp`), so the z axis needs no bias force.
+
+The platform is a real dynamic body, not a mocap body: MuJoCo gives mocap bodies zero contact
+velocity, so friction would not carry the robot along.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from lasmp.config import PlatformCfg, SimCfg
+from lasmp.robots import a1
+
+PLATFORM_JOINTS = ("plf_x", "plf_y", "plf_z", "plf_yaw", "plf_pitch", "plf_roll")
+# Index of each trajectory pose component [x, y, z, roll, pitch, yaw] in PLATFORM_JOINTS order.
+POSE_TO_JOINT = np.array([0, 1, 2, 5, 4, 3])
+NON_FOOT_BODIES = ("trunk",) + tuple(f"{leg}_{link}" for leg in a1.LEG_NAMES for link in ("hip", "thigh", "calf"))
+
+
+@dataclass(frozen=True)
+class PlatformGains:
+    """Nominal per-axis PD gains in PLATFORM_JOINTS order (N/m, N·s/m; N·m/rad, N·m·s/rad)."""
+
+    kp: np.ndarray  # (6,) gains at stiffness factor 1
+    kd: np.ndarray  # (6,) gains at damping factor 1 (the paper's factors are ~0.025)
+
+
+def platform_gains(cfg: PlatformCfg) -> PlatformGains:
+    """Gains that make each axis a 2nd-order system of `bandwidth_hz` at factor 1."""
+    w, l, h = cfg.size_m
+    m = cfg.mass_kg
+    # box inertias about the CoM; the hinges pass through it
+    i_roll = m * (l**2 + h**2) / 12.0
+    i_pitch = m * (w**2 + h**2) / 12.0
+    i_yaw = m * (w**2 + l**2) / 12.0
+    inertia = np.array([m, m, m, i_yaw, i_pitch, i_roll])
+    omega = 2.0 * math.pi * cfg.bandwidth_hz
+    kp = inertia * omega**2
+    kd = 2.0 * cfg.damping_ratio * inertia * omega / cfg.kd_factor_ref
+    return PlatformGains(kp=kp, kd=kd)
+
+
+def platform_top_z_m(cfg: PlatformCfg) -> float:
+    """Height of the platform's top surface above its centre, m."""
+    return cfg.size_m[2] / 2.0
+
+
+def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
+    # the robot's own MJCF is the base spec; the platform is added to its world (no attach, so
+    # names stay as the robot file has them)
+    spec = mujoco.MjSpec.from_file(str(a1.MJCF_PATH))
+    spec.modelname = "lasmp_moving_platform"
+    spec.option.timestep = sim.dt_s
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST  # stiff platform PD, implicit damping
+    spec.option.iterations = sim.solver_iterations
+    spec.option.ls_iterations = max(5, sim.solver_iterations // 2)
+    spec.visual.global_.offwidth = 1280
+    spec.visual.global_.offheight = 720
+
+    world = spec.worldbody
+    world.add_light(pos=[0, 0, 12], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
+
+    gains = platform_gains(platform)
+    body = world.add_body(name="platform", gravcomp=1.0)
+    for name in PLATFORM_JOINTS:
+        axis = {"x": [1, 0, 0], "y": [0, 1, 0], "z": [0, 0, 1], "roll": [1, 0, 0], "pitch": [0, 1, 0], "yaw": [0, 0, 1]}
+        kind = mujoco.mjtJoint.mjJNT_SLIDE if name in ("plf_x", "plf_y", "plf_z") else mujoco.mjtJoint.mjJNT_HINGE
+        body.add_joint(name=name, type=kind, axis=axis[name.split("_")[1]])
+    half = [s / 2.0 for s in platform.size_m]
+    body.add_geom(
+        name="platform",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=half,
+        mass=platform.mass_kg,
+        contype=0,
+        conaffinity=1,
+        friction=[platform.friction, 0.005, 0.0001],
+        rgba=[0.45, 0.5, 0.6, 1.0],
+    )
+    body.add_site(name="platform_centre")
+    for j, name in enumerate(PLATFORM_JOINTS):
+        kp, kd = float(gains.kp[j]), float(gains.kd[j])
+        pos = spec.add_actuator(name=f"{name}_pos", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        pos.set_to_position(kp=kp)
+        vel = spec.add_actuator(name=f"{name}_vel", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        vel.set_to_velocity(kv=kd * 0.025)  # nominal factor; the env writes per-env gains
+
+    for leg in a1.LEG_NAMES:  # a foot's friction (randomized) decides its contacts, not the platform's
+        spec.geom(f"{leg}_foot").priority = 1
+
+    def sensor(name, stype, objtype, objname, **kw):
+        s = spec.add_sensor(name=name, type=stype, objtype=objtype, objname=objname)
+        for k, v in kw.items():
+            setattr(s, k, v)
+        return s
+
+    site = mujoco.mjtObj.mjOBJ_SITE
+    sensor("plf_linvel", mujoco.mjtSensor.mjSENS_FRAMELINVEL, site, "platform_centre")
+    sensor("plf_angvel", mujoco.mjtSensor.mjSENS_FRAMEANGVEL, site, "platform_centre")
+    for leg in a1.LEG_NAMES:
+        sensor(f"{leg}_foot_linvel", mujoco.mjtSensor.mjSENS_FRAMELINVEL, site, f"{leg}_foot")
+    # Contact sensors (need the acceleration stage: read after a step they describe the last substep).
+    found = 1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)
+    force = 1 << int(mujoco.mjtConDataField.mjCONDATA_FORCE)
+    reduce_netforce = 3  # MJCF reduce="netforce": one net force, world frame
+    for leg in a1.LEG_NAMES:
+        s = sensor(f"{leg}_foot_contact", mujoco.mjtSensor.mjSENS_CONTACT, mujoco.mjtObj.mjOBJ_GEOM, f"{leg}_foot")
+        s.intprm = [found | force, reduce_netforce, 1]
+    for name in NON_FOOT_BODIES:  # body1=name: geoms of that body only (feet are bodies of their own)
+        s = sensor(f"{name}_collision", mujoco.mjtSensor.mjSENS_CONTACT, mujoco.mjtObj.mjOBJ_BODY, name)
+        s.intprm = [found, 0, 1]
+    return spec
+
+
+def build_model(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjModel:
+    return build_spec(platform, sim).compile()

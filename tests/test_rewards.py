@@ -1,0 +1,282 @@
+"""Reward terms (sign, magnitude, shape) and the RewardManager."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from lasmp.envs.moving_platform import rewards as R
+from lasmp.envs.moving_platform.rewards import (
+    DEFAULT_REWARD_WEIGHTS,
+    REWARD_TERMS,
+    RewardManager,
+    RewardParams,
+)
+from lasmp.envs.moving_platform.state import StepState
+
+N = 3
+P = RewardParams()
+
+
+def make_state(n: int = N, dt_s: float = 0.02, **overrides) -> StepState:
+    """A StepState at a 'perfect' pose: centred, level, at h_des, nothing moving."""
+    z = lambda *shape: torch.zeros(n, *shape)  # noqa: E731
+    p_body = z(3)
+    p_body[:, 2] = P.h_des_m
+    fields = dict(
+        dt_s=dt_s,
+        p_body_p=p_body,
+        phi_body_w=z(3),
+        v_body_b=z(3),
+        omega_body_b=z(3),
+        v_plf_b=z(3),
+        omega_plf_b=z(3),
+        u_aln=z(3),
+        action=z(12),
+        action_prev=z(12),
+        tau=z(12),
+        tau_prev=z(12),
+        q_dot=z(12),
+        q_ddot=z(12),
+        f_feet_w=z(4, 3),
+        contact=torch.zeros(n, 4, dtype=torch.bool),
+        touchdown=torch.zeros(n, 4, dtype=torch.bool),
+        liftoff=torch.zeros(n, 4, dtype=torch.bool),
+        t_air_s=z(4),
+        t_contact_s=z(4),
+        v_slip_p=z(4, 2),
+        collision=torch.zeros(n, dtype=torch.bool),
+    )
+    fields.update(overrides)
+    return StepState(**fields)
+
+
+def term(name: str, s: StepState) -> torch.Tensor:
+    out = REWARD_TERMS[name](s, P)
+    assert out.shape == (s.p_body_p.shape[0],), name
+    assert torch.all(out >= 0), f"{name} must be a non-negative magnitude"
+    return out
+
+
+def close(a: torch.Tensor, expected) -> None:
+    torch.testing.assert_close(a, torch.as_tensor(expected, dtype=a.dtype), rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", sorted(REWARD_TERMS))
+def test_every_term_shape_and_sign_on_random_state(name):
+    g = torch.Generator().manual_seed(0)
+    s = make_state()
+    for f in (
+        "p_body_p",
+        "phi_body_w",
+        "u_aln",
+        "action",
+        "action_prev",
+        "tau",
+        "tau_prev",
+        "q_dot",
+        "q_ddot",
+        "t_air_s",
+        "t_contact_s",
+        "v_slip_p",
+    ):
+        setattr(s, f, torch.randn(getattr(s, f).shape, generator=g))
+    s.f_feet_w = 100 * torch.randn(N, 4, 3, generator=g)
+    for f in ("contact", "touchdown", "liftoff"):
+        setattr(s, f, torch.rand(N, 4, generator=g) > 0.5)
+    s.collision = torch.tensor([True, False, True])
+    out = term(name, s)
+    assert torch.isfinite(out).all()
+    w = DEFAULT_REWARD_WEIGHTS[name]
+    # task1..4 are bonuses, everything else a penalty
+    assert (w > 0) == (name.startswith("task") and name != "task0_collision")
+
+
+def test_task0_collision():
+    s = make_state(collision=torch.tensor([True, False, True]))
+    close(term("task0_collision", s), [1.0, 0.0, 1.0])
+
+
+def test_task1_center():
+    p = make_state().p_body_p
+    p[1, :2] = torch.tensor([1.2, 0.0])
+    p[2, :2] = torch.tensor([0.3, 0.4])  # 0.5 m off centre; z must not count
+    p[2, 2] = 5.0
+    close(term("task1_center", make_state(p_body_p=p)), [1.0, math.exp(-1.0), math.exp(-0.5 / 1.2)])
+
+
+def test_task2_alignment():
+    u = torch.zeros(N, 3)
+    u[1] = torch.tensor([0.3, 0.0, 0.0])
+    u[2] = torch.tensor([0.0, 0.3, 0.4])  # the yaw-rate part counts
+    close(term("task2_alignment", make_state(u_aln=u)), [1.0, math.exp(-1.0), math.exp(-0.5 / 0.3)])
+
+
+def test_task3_level():
+    phi = torch.zeros(N, 3)
+    phi[1] = torch.tensor([0.2, 0.0, 0.0])
+    phi[2] = torch.tensor([0.0, 0.0, 3.0])  # yaw does not count
+    close(term("task3_level", make_state(phi_body_w=phi)), [1.0, math.exp(-1.0), 1.0])
+
+
+def test_task4_height():
+    p = make_state().p_body_p
+    p[1, 2] = P.h_des_m + 0.1
+    p[2, 2] = P.h_des_m - 0.2
+    p[2, :2] = 1.0  # xy does not count
+    close(term("task4_height", make_state(p_body_p=p)), [1.0, math.exp(-1.0), math.exp(-2.0)])
+
+
+@pytest.mark.parametrize(
+    "name, now, prev",
+    [("reg0_torque_rate", "tau", "tau_prev"), ("reg0_action_rate", "action", "action_prev")],
+)
+def test_reg0_rates_are_squared_norms_of_the_difference(name, now, prev):
+    a = torch.zeros(N, 12)
+    b = torch.zeros(N, 12)
+    a[1, :2] = torch.tensor([3.0, 4.0])  # ‖Δ‖ = 5 -> 25
+    a[2] = 7.0
+    b[2] = 7.0  # same as before -> 0
+    close(term(name, make_state(**{now: a, prev: b})), [0.0, 25.0, 0.0])
+
+
+@pytest.mark.parametrize(
+    "name, field", [("reg1_torque", "tau"), ("reg1_joint_vel", "q_dot"), ("reg1_joint_acc", "q_ddot")]
+)
+def test_reg1_effort_terms_are_squared_norms(name, field):
+    x = torch.zeros(N, 12)
+    x[1, :2] = torch.tensor([3.0, -4.0])
+    x[2] = -2.0  # 12 * 4
+    close(term(name, make_state(**{field: x})), [0.0, 25.0, 48.0])
+
+
+def test_reg2_power_counts_only_positive_power():
+    tau = torch.zeros(N, 12)
+    qd = torch.zeros(N, 12)
+    tau[1, :2] = torch.tensor([2.0, 3.0])
+    qd[1, :2] = torch.tensor([5.0, -1.0])  # +10, -3 (ignored)
+    tau[2, 0], qd[2, 0] = -2.0, -4.0  # +8
+    close(term("reg2_power", make_state(tau=tau, q_dot=qd)), [0.0, 10.0, 8.0])
+
+
+def test_reg3_contact_force_above_tolerance():
+    f = torch.zeros(N, 4, 3)
+    f[1, 0] = torch.tensor([0.0, 0.0, 70.0])  # 70 N with tolerance 50 -> 20
+    f[1, 1] = torch.tensor([0.0, 0.0, 40.0])  # below tolerance -> 0
+    f[2, 2] = torch.tensor([30.0, 40.0, 0.0])  # ‖f‖ = 50 -> 0
+    f[2, 3] = torch.tensor([0.0, 60.0, 80.0])  # 100 -> 50
+    close(term("reg3_contact_force", make_state(f_feet_w=f)), [0.0, 20.0, 50.0])
+
+
+def test_reg4_air_time_only_at_touchdown_and_clipped():
+    td = torch.zeros(N, 4, dtype=torch.bool)
+    t_air = torch.zeros(N, 4)
+    td[0, 0], t_air[0, 0] = True, 0.3  # 0.2
+    td[1, 1], t_air[1, 1] = True, 0.05  # tap: clipped to 0, not a bonus
+    t_air[2, :] = 1.0  # no touchdown -> 0
+    td[2, 2], t_air[2, 2] = True, 0.15  # 0.05
+    close(term("reg4_air_time", make_state(touchdown=td, t_air_s=t_air)), [0.2, 0.0, 0.05])
+
+
+def test_reg5_contact_time_only_at_liftoff_and_clipped():
+    lo = torch.zeros(N, 4, dtype=torch.bool)
+    t_c = torch.zeros(N, 4)
+    lo[0, 0], t_c[0, 0] = True, 0.2  # 0.3
+    lo[0, 3], t_c[0, 3] = True, 0.4  # + 0.1
+    lo[1, 1], t_c[1, 1] = True, 2.0  # long stance: clipped to 0, not a bonus
+    t_c[2, :] = 0.0  # no lift-off -> 0
+    close(term("reg5_contact_time", make_state(liftoff=lo, t_contact_s=t_c)), [0.4, 0.0, 0.0])
+
+
+def test_reg6_foot_slip_only_feet_in_contact():
+    c = torch.zeros(N, 4, dtype=torch.bool)
+    v = torch.zeros(N, 4, 2)
+    v[0, 0] = torch.tensor([3.0, 4.0])  # in contact: 5
+    c[0, 0] = True
+    v[0, 1] = torch.tensor([10.0, 0.0])  # in the air: ignored
+    v[1, :] = 1.0  # all in the air
+    c[2, :] = True
+    v[2, :, 0] = 0.5  # 4 * 0.5
+    close(term("reg6_foot_slip", make_state(contact=c, v_slip_p=v)), [5.0, 0.0, 2.0])
+
+
+# ---- manager ----------------------------------------------------------------------------
+
+
+def test_default_weight_keys_match_registry():
+    assert set(DEFAULT_REWARD_WEIGHTS) == set(REWARD_TERMS)
+    assert len(REWARD_TERMS) == 15
+
+
+def test_default_params():
+    assert RewardParams() == RewardParams(1.2, 0.3, 0.2, 0.1, 0.37, 50.0, 0.1, 0.5)
+
+
+def test_unknown_name_refused_with_valid_names():
+    with pytest.raises(ValueError) as e:
+        RewardManager({"task1_centre": 1.0}, P, N, "cpu")
+    msg = str(e.value)
+    assert "task1_centre" in msg
+    for name in REWARD_TERMS:
+        assert name in msg
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_weight_refused_naming_term(bad):
+    with pytest.raises(ValueError, match="reg2_power"):
+        RewardManager({"task1_center": 1.0, "reg2_power": bad}, P, N, "cpu")
+
+
+def test_zero_weight_skips_term(monkeypatch):
+    def boom(s, p):
+        raise AssertionError("a weight-0 term was computed")
+
+    monkeypatch.setitem(REWARD_TERMS, "reg6_foot_slip", boom)
+    m = RewardManager({"task1_center": 1.0, "reg6_foot_slip": 0.0}, P, N, "cpu")
+    m.compute(make_state())
+    assert m.term_names == ["task1_center"]
+    assert "reg6_foot_slip" not in m.reset()
+
+
+def test_compute_is_weighted_sum_times_dt():
+    dt = 0.02
+    col = torch.tensor([True, False, False])
+    m = RewardManager({"task0_collision": -10.0, "task1_center": 3.0}, P, N, "cpu")
+    r = m.compute(make_state(dt_s=dt, collision=col))
+    assert r.shape == (N,)
+    close(r, [(-10.0 + 3.0) * dt, 3.0 * dt, 3.0 * dt])
+
+
+def test_default_weights_perfect_standing_state():
+    dt = 0.005
+    m = RewardManager(DEFAULT_REWARD_WEIGHTS, P, N, "cpu")
+    # perfect state: all task bonuses = 1, all penalties 0
+    close(m.compute(make_state(dt_s=dt)), [(3.0 + 2.0 + 1.0 + 4.0) * dt] * N)
+
+
+def test_episode_sums_accumulate_and_reset_per_env():
+    dt = 0.1
+    m = RewardManager({"task0_collision": -10.0, "task1_center": 2.0}, P, N, "cpu")
+    col = torch.tensor([True, False, False])
+    for _ in range(3):
+        m.compute(make_state(dt_s=dt, collision=col))
+    log = m.reset(torch.tensor([0, 1]))
+    assert set(log) == {"task0_collision", "task1_center"}
+    assert log["task0_collision"] == pytest.approx((-10.0 * 3 * dt + 0.0) / 2)
+    assert log["task1_center"] == pytest.approx(2.0 * 3 * dt)
+    # env 2 untouched, envs 0 and 1 zeroed
+    m.compute(make_state(dt_s=dt, collision=col))
+    log = m.reset([2])
+    assert log["task1_center"] == pytest.approx(2.0 * 4 * dt)
+    log = m.reset([0])
+    assert log["task0_collision"] == pytest.approx(-10.0 * dt)
+    assert log["task1_center"] == pytest.approx(2.0 * dt)
+    assert m.reset([]) == {}
+
+
+def test_registry_module_attributes_match():
+    # every registered function is a module-level function of the same name
+    for name, fn in REWARD_TERMS.items():
+        assert getattr(R, name) is fn

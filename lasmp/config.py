@@ -185,13 +185,17 @@ class CurriculumCfg:
 
     def validate(self, p: str):
         if not 1 <= self.level_min <= self.level_max:
-            raise ConfigError(f"{p}: need 1 <= level_min <= level_max, got {self.level_min}, {self.level_max}")
+            raise ConfigError(
+                f"{p}: need 1 <= level_min <= level_max, got {self.level_min}, {self.level_max}"
+            )
         if not 0 < self.promote_success_rate <= 1:
             raise ConfigError(f"{p}.promote_success_rate must be in (0, 1], got {self.promote_success_rate}")
         if self.window_episodes < 1:
             raise ConfigError(f"{p}.window_episodes must be >= 1, got {self.window_episodes}")
         if not 0 <= self.replay_lower_fraction < 1:
-            raise ConfigError(f"{p}.replay_lower_fraction must be in [0, 1), got {self.replay_lower_fraction}")
+            raise ConfigError(
+                f"{p}.replay_lower_fraction must be in [0, 1), got {self.replay_lower_fraction}"
+            )
 
 
 @dataclass
@@ -209,7 +213,9 @@ class RewardsCfg:
     def validate(self, p: str):
         unknown = sorted(set(self.weights) - set(REWARD_TERMS))
         if unknown:
-            raise ConfigError(f"{p}.weights: unknown reward term(s) {unknown}; valid terms: {sorted(REWARD_TERMS)}")
+            raise ConfigError(
+                f"{p}.weights: unknown reward term(s) {unknown}; valid terms: {sorted(REWARD_TERMS)}"
+            )
         for name, w in self.weights.items():
             if not math.isfinite(float(w)):
                 raise ConfigError(f"{p}.weights.{name} must be finite, got {w}")

@@ -26,7 +26,9 @@ from lasmp.robots import a1
 PLATFORM_JOINTS = ("plf_x", "plf_y", "plf_z", "plf_yaw", "plf_pitch", "plf_roll")
 # Index of each trajectory pose component [x, y, z, roll, pitch, yaw] in PLATFORM_JOINTS order.
 POSE_TO_JOINT = np.array([0, 1, 2, 5, 4, 3])
-NON_FOOT_BODIES = ("trunk",) + tuple(f"{leg}_{link}" for leg in a1.LEG_NAMES for link in ("hip", "thigh", "calf"))
+NON_FOOT_BODIES = ("trunk",) + tuple(
+    f"{leg}_{link}" for leg in a1.LEG_NAMES for link in ("hip", "thigh", "calf")
+)
 
 
 @dataclass(frozen=True)
@@ -75,8 +77,19 @@ def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
     gains = platform_gains(platform)
     body = world.add_body(name="platform", gravcomp=1.0)
     for name in PLATFORM_JOINTS:
-        axis = {"x": [1, 0, 0], "y": [0, 1, 0], "z": [0, 0, 1], "roll": [1, 0, 0], "pitch": [0, 1, 0], "yaw": [0, 0, 1]}
-        kind = mujoco.mjtJoint.mjJNT_SLIDE if name in ("plf_x", "plf_y", "plf_z") else mujoco.mjtJoint.mjJNT_HINGE
+        axis = {
+            "x": [1, 0, 0],
+            "y": [0, 1, 0],
+            "z": [0, 0, 1],
+            "roll": [1, 0, 0],
+            "pitch": [0, 1, 0],
+            "yaw": [0, 0, 1],
+        }
+        kind = (
+            mujoco.mjtJoint.mjJNT_SLIDE
+            if name in ("plf_x", "plf_y", "plf_z")
+            else mujoco.mjtJoint.mjJNT_HINGE
+        )
         body.add_joint(name=name, type=kind, axis=axis[name.split("_")[1]])
     half = [s / 2.0 for s in platform.size_m]
     body.add_geom(
@@ -116,7 +129,9 @@ def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
     force = 1 << int(mujoco.mjtConDataField.mjCONDATA_FORCE)
     reduce_netforce = 3  # MJCF reduce="netforce": one net force, world frame
     for leg in a1.LEG_NAMES:
-        s = sensor(f"{leg}_foot_contact", mujoco.mjtSensor.mjSENS_CONTACT, mujoco.mjtObj.mjOBJ_GEOM, f"{leg}_foot")
+        s = sensor(
+            f"{leg}_foot_contact", mujoco.mjtSensor.mjSENS_CONTACT, mujoco.mjtObj.mjOBJ_GEOM, f"{leg}_foot"
+        )
         s.intprm = [found | force, reduce_netforce, 1]
     for name in NON_FOOT_BODIES:  # body1=name: geoms of that body only (feet are bodies of their own)
         s = sensor(f"{name}_collision", mujoco.mjtSensor.mjSENS_CONTACT, mujoco.mjtObj.mjOBJ_BODY, name)

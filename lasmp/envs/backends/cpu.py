@@ -13,6 +13,8 @@ state. The caller terminates and resets those envs alone.
 
 from __future__ import annotations
 
+import time
+
 import mujoco
 import mujoco.batch
 import numpy as np
@@ -35,6 +37,7 @@ class CpuBatchSim:
         self.site_xpos = b.bind("site_xpos")
         self.actuator_force = b.bind("actuator_force")
         self._warnings_seen = self._warning_count().copy()
+        self.step_time_s = 0.0  # wall time spent inside Batch.step, for benchmarks
 
     def _warning_count(self) -> np.ndarray:
         return self.batch.warning[:, :, 1].sum(axis=1)  # (nsim,) total warnings raised so far
@@ -46,10 +49,12 @@ class CpuBatchSim:
     def step(self, nstep: int) -> np.ndarray:
         """Advance all envs `nstep` physics steps; return the (num_envs,) mask of faulted envs."""
         faulted = np.zeros(self.num_envs, dtype=bool)
+        start = time.perf_counter()
         try:
             self.batch.step(nstep=nstep, stage=_STAGE_VEL)
         except mujoco.batch.SimulationError as err:
             faulted[err.ids] = True
+        self.step_time_s += time.perf_counter() - start
         warnings = self._warning_count()
         faulted |= warnings != self._warnings_seen
         self._warnings_seen[:] = warnings

@@ -1,0 +1,110 @@
+"""The shared step loop of every lasmp task, on rsl_rl's `VecEnv` contract.
+
+`step(actions)` = check actions -> `_apply_actions` -> physics (`CpuBatchSim.step`, decimation
+substeps) -> `_evaluate` (rewards, terminations, time-outs, from the new state) -> reset the
+finished envs -> `_observations` (for reset envs: their first observation). Faulted envs
+(MuJoCo errors, warnings, non-finite state) are terminated, get reward 0, are reset alone, and
+are counted in `extras["log"]["/faults/count"]`. A last guard replaces any non-finite
+observation value by 0 (the task's `_observations` does
+it) and counts it, so that no NaN ever reaches a policy.
+
+`extras["time_outs"]` flags episodes that ended at the time limit (a truncation, to be
+bootstrapped), `extras["log"]` holds per-episode reward terms and task metrics.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+
+import numpy as np
+import torch
+from rsl_rl.env import VecEnv
+from tensordict import TensorDict
+
+from lasmp.config import BaseEnvCfg
+from lasmp.envs.backends.cpu import CpuBatchSim
+
+
+class BaseEnv(VecEnv):
+    def __init__(
+        self, cfg: BaseEnvCfg, sim: CpuBatchSim, num_actions: int, max_episode_length: int, device="cpu"
+    ):
+        self.cfg = cfg
+        self.sim = sim
+        self.num_envs = cfg.num_envs
+        self.num_actions = num_actions
+        self.max_episode_length = max_episode_length
+        self.device = torch.device(device)
+        self.dt_s = cfg.sim.dt_s * cfg.sim.decimation
+        self.rng = np.random.default_rng(cfg.seed)
+        self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long)
+        self.fault_count = 0  # faulted envs since construction
+        self._obs: TensorDict | None = None
+        self.nonfinite_obs_values = 0
+
+    # -- the task fills these ----------------------------------------------------------------
+    @abstractmethod
+    def _apply_actions(self, actions: np.ndarray) -> None:
+        """Write controls for the coming policy step (actions: (n, num_actions) float64, clipped)."""
+
+    @abstractmethod
+    def _evaluate(self, faulted: np.ndarray) -> tuple[torch.Tensor, np.ndarray, dict]:
+        """After physics: (reward (n,), terminated (n,) bool, log dict). Faulted envs are terminated."""
+
+    @abstractmethod
+    def _reset_envs(self, ids: np.ndarray, terminated: np.ndarray, timed_out: np.ndarray) -> dict:
+        """Reset envs `ids` (with why their episodes ended); return log entries of the finished episodes."""
+
+    @abstractmethod
+    def _observations(self) -> TensorDict:
+        """Observation groups of all envs (tensors on self.device, float32), every value finite.
+
+        Sets `self.nonfinite_obs_values` to the number of non-finite values it replaced by 0.
+        """
+
+    # -- the contract --------------------------------------------------------------------------
+    def reset(self) -> tuple[TensorDict, dict]:
+        ids = np.arange(self.num_envs)
+        none = np.zeros(self.num_envs, dtype=bool)
+        self._reset_envs(ids, none, none)
+        self.episode_length_buf.zero_()
+        self._obs = self._guarded_observations({})
+        return self._obs, {}
+
+    def get_observations(self) -> TensorDict:
+        if self._obs is None:
+            self.reset()
+        return self._obs
+
+    def step(self, actions: torch.Tensor) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:
+        if actions.shape != (self.num_envs, self.num_actions):
+            raise ValueError(
+                f"actions must have shape {(self.num_envs, self.num_actions)}, got {tuple(actions.shape)}"
+            )
+        a = actions.detach().to("cpu", torch.float64).numpy()
+        if not np.isfinite(a).all():
+            bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
+            raise ValueError(f"actions contain NaN/inf in envs {bad[:10].tolist()}: the policy diverged")
+        clip = self.cfg.control.action_clip
+        self._apply_actions(np.clip(a, -clip, clip))
+        faulted = self.sim.step(self.cfg.sim.decimation)
+        self.episode_length_buf += 1
+        reward, terminated, log = self._evaluate(faulted)
+        reward[torch.from_numpy(faulted)] = 0.0
+        terminated = terminated | faulted
+        timed_out = (self.episode_length_buf.numpy() >= self.max_episode_length) & ~terminated
+        done = terminated | timed_out
+        ids = np.flatnonzero(done)
+        self.fault_count += int(faulted.sum())
+        log["/faults/count"] = float(faulted.sum())
+        if len(ids):
+            log.update(self._reset_envs(ids, terminated[ids], timed_out[ids]))
+            self.episode_length_buf[torch.from_numpy(ids)] = 0
+        self._obs = self._guarded_observations(log)
+        extras = {"time_outs": torch.from_numpy(timed_out).to(self.device), "log": log}
+        return self._obs, reward.to(self.device), torch.from_numpy(done).to(self.device), extras
+
+    def _guarded_observations(self, log: dict) -> TensorDict:
+        obs = self._observations()
+        log["/faults/nonfinite_obs_values"] = float(self.nonfinite_obs_values)
+        return obs

@@ -1,0 +1,307 @@
+"""The LAS-MP task: an A1 keeps its balance on a platform tracking a 6-DoF trajectory.
+
+Observation groups (TensorDict, float32):
+- `policy`        o (44): [accelerometer_b (3), gyro_b (3), roll & pitch (2), q - q_nominal (12),
+                  q_dot (12), a_{t-1} (12)]. q is centred at the nominal stance (ours, as legged_gym).
+- `history`       o^H (H, 44): [o_{t-1}, ..., o_{t-H}], newest first; filled with o_0 at reset.
+- `priv_explicit` x_exp (13): [foot contacts (4), v_body_b (3), v_plf_b (3), omega_plf_b (3)].
+- `priv_implicit` x_imp (29): [trunk mass, CoM shift (3), foot friction, Kp (12), Kd (12)].
+- `alignment`     u_aln (3): [v_plf_b,xy - v_body_b,xy, omega_plf_b,z - omega_body_b,z].
+- `critic`        (95): [o, x_exp, x_imp, u_aln, p_body_p (3), phi_body_w (3)].
+`v_plf_b` is the velocity of the platform point under the trunk origin (ours): a robot that
+rides the platform rigidly then has u_aln = 0 even while the platform turns.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from tensordict import TensorDict
+
+from lasmp.config import MovingPlatformCfg, build_env_cfg
+from lasmp.envs import trajectories as trj
+from lasmp.envs.backends.cpu import CpuBatchSim
+from lasmp.envs.base_env import BaseEnv
+from lasmp.envs.curriculum import WaypointCurriculum
+from lasmp.envs.moving_platform.domain_rand import (
+    Intrinsics,
+    IntrinsicsWriter,
+    nominal_intrinsics,
+    sample_intrinsics,
+)
+from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read
+from lasmp.envs.moving_platform.rewards import RewardManager, RewardParams
+from lasmp.envs.moving_platform.state import StepState
+from lasmp.envs.rotations import yaw_quat
+from lasmp.envs.scene import PLATFORM_JOINTS, POSE_TO_JOINT, build_model, platform_gains, platform_top_z_m
+from lasmp.robots import a1
+
+OBS_DIM = 44
+X_EXP_DIM = 13
+X_IMP_DIM = 29
+
+
+def _t(x: np.ndarray, device) -> torch.Tensor:
+    return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32)).to(device)
+
+
+class MovingPlatformEnv(BaseEnv):
+    def __init__(self, cfg: MovingPlatformCfg | dict | None = None, device="cpu"):
+        if not isinstance(cfg, MovingPlatformCfg):
+            cfg = build_env_cfg(cfg)
+        else:
+            cfg.validate()
+        model = build_model(cfg.platform, cfg.sim)
+        sim = CpuBatchSim(model, cfg.num_envs, cfg.sim.num_threads)
+        dt_s = cfg.sim.dt_s * cfg.sim.decimation
+        super().__init__(cfg, sim, 12, int(round(cfg.trajectory.duration_s / dt_s)), device)
+        n = self.num_envs
+        self.index = ReadoutIndex(model)
+        self.gains = platform_gains(cfg.platform)
+        self.writer = IntrinsicsWriter(sim, self.gains)
+        self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.platform.kd_factor_ref)
+        self.q_nominal = np.asarray(a1.Q_NOMINAL_RAD)
+        self.trunk_height_m = a1.nominal_trunk_height_m(model)
+        self.plf_act_pos = np.array([model.actuator(f"{j}_pos").id for j in PLATFORM_JOINTS])
+        self.plf_act_vel = np.array([model.actuator(f"{j}_vel").id for j in PLATFORM_JOINTS])
+        self.robot_act = self.index.joint_act
+
+        tc, cc = cfg.trajectory, cfg.curriculum
+        self.traj_ranges = trj.ranges_for_split(tc.split)
+        self.traj_file = trj.load(tc.file) if tc.file else None
+        self._file_cursor = 0
+        self.curriculum = (
+            WaypointCurriculum(
+                cc.level_min,
+                cc.level_max,
+                cc.promote_success_rate,
+                cc.window_episodes,
+                cc.replay_lower_fraction,
+            )
+            if cc.enabled and self.traj_file is None
+            else None
+        )
+        self.traj = trj.sample(n, self.traj_ranges, self.rng, n_waypoints=self.traj_ranges.n_waypoints_min)
+        self.traj_level = np.full(n, -1)
+
+        rc = cfg.rewards
+        params = RewardParams(
+            rc.sigma_center_m, rc.sigma_alignment, rc.sigma_level_rad, rc.sigma_height_m, rc.h_des_m,
+            rc.f_tol_n, rc.t_swing_des_s, rc.t_contact_des_s,
+        )  # fmt: skip
+        self.rewards = RewardManager(rc.weights, params, n)
+        self.plf_top_m = platform_top_z_m(cfg.platform)
+        self.plf_half_xy_m = np.array(cfg.platform.size_m[:2]) / 2.0
+
+        self.action = np.zeros((n, 12))
+        self.action_prev = np.zeros((n, 12))
+        self.tau_prev = np.zeros((n, 12))
+        self.q_dot_prev = np.zeros((n, 12))
+        self.contact_prev = np.zeros((n, 4), dtype=bool)
+        self.t_air_s = np.zeros((n, 4))
+        self.t_contact_s = np.zeros((n, 4))
+        self.history = torch.zeros(n, cfg.observations.history_length, OBS_DIM, device=self.device)
+        self.nonfinite_obs_values = 0  # replaced by 0 in the last observation (a fault symptom)
+        self.readout: Readout | None = None
+        self._fresh: np.ndarray | None = None  # envs reset since the last observation
+        self.last_state: StepState | None = None
+
+    # -- control -------------------------------------------------------------------------------
+    def _platform_reference(self, rows_t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pose, vel, _ = self.traj.evaluate(rows_t_s)
+        return pose[:, POSE_TO_JOINT], vel[:, POSE_TO_JOINT]
+
+    def _apply_actions(self, actions: np.ndarray) -> None:
+        self.action_prev[:] = self.action
+        self.action[:] = actions
+        ctrl = self.sim.ctrl
+        ctrl[:, self.robot_act] = self.q_nominal + self.cfg.control.action_scale * actions
+        # hold the reference sampled mid-step over the decimation substeps
+        t_s = self.episode_length_buf.numpy() * self.dt_s + self.cfg.platform.ref_lead_s
+        x_ref, v_ref = self._platform_reference(t_s)
+        ctrl[:, self.plf_act_pos] = x_ref
+        ctrl[:, self.plf_act_vel] = v_ref
+
+    # -- evaluation ----------------------------------------------------------------------------
+    def _fell(self, r: Readout) -> np.ndarray:
+        tc = self.cfg.termination
+        off = (np.abs(r.p_body_p[:, :2]) > self.plf_half_xy_m + tc.footprint_margin_m).any(axis=1)
+        below = r.p_body_p[:, 2] < self.plf_top_m + tc.fall_below_top_m
+        return off | below
+
+    def _evaluate(self, faulted: np.ndarray):
+        r = read(self.sim, self.index)
+        faulted |= (np.abs(r.q_dot) > self.cfg.termination.max_joint_vel_rad_s).any(axis=1)
+        if faulted.any():  # keep NaNs of diverged envs out of rewards and logs
+            for name, value in vars(r).items():
+                if value.dtype.kind == "f":
+                    setattr(r, name, np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0))
+        self.readout = r
+        fell = self._fell(r)
+        collision = r.body_collision | fell
+        dt = self.dt_s
+        contact = r.foot_contact
+        touchdown = contact & ~self.contact_prev
+        liftoff = ~contact & self.contact_prev
+        self.t_air_s += dt * ~contact
+        self.t_contact_s += dt * contact
+        t_air_ended = np.where(touchdown, self.t_air_s, 0.0)
+        t_contact_ended = np.where(liftoff, self.t_contact_s, 0.0)
+        self.t_air_s[contact] = 0.0
+        self.t_contact_s[~contact] = 0.0
+        self.contact_prev = contact
+        dev = self.device
+        state = StepState(
+            dt_s=dt,
+            p_body_p=_t(r.p_body_p, dev),
+            phi_body_w=_t(r.phi_body_w, dev),
+            v_body_b=_t(r.v_body_b, dev),
+            omega_body_b=_t(r.omega_body_b, dev),
+            v_plf_b=_t(r.v_plf_b, dev),
+            omega_plf_b=_t(r.omega_plf_b, dev),
+            u_aln=_t(r.u_aln, dev),
+            action=_t(self.action, dev),
+            action_prev=_t(self.action_prev, dev),
+            tau=_t(r.tau, dev),
+            tau_prev=_t(self.tau_prev, dev),
+            q_dot=_t(r.q_dot, dev),
+            q_ddot=_t((r.q_dot - self.q_dot_prev) / dt, dev),
+            f_feet_w=_t(r.f_feet_w, dev),
+            contact=torch.from_numpy(contact),
+            touchdown=torch.from_numpy(touchdown),
+            liftoff=torch.from_numpy(liftoff),
+            t_air_s=_t(t_air_ended, dev),
+            t_contact_s=_t(t_contact_ended, dev),
+            v_slip_p=_t(r.v_slip_p, dev),
+            collision=torch.from_numpy(collision),
+        )
+        self.last_state = state
+        reward = self.rewards.compute(state)
+        self.tau_prev[:] = r.tau
+        self.q_dot_prev[:] = r.q_dot
+        log = {
+            "Termination/body_contact": float(r.body_collision.sum()),
+            "Termination/fell": float(fell.sum()),
+        }
+        return reward, collision, log
+
+    # -- resets --------------------------------------------------------------------------------
+    def _next_trajectories(self, ids: np.ndarray) -> tuple[trj.PiecewiseCubic, np.ndarray]:
+        if self.traj_file is not None:  # replay the file's rows in order, wrapping around
+            rows = (self._file_cursor + np.arange(len(ids))) % len(self.traj_file)
+            self._file_cursor = int((self._file_cursor + len(ids)) % len(self.traj_file))
+            new = self.traj_file.subset(rows)
+            return new, new.n_waypoints
+        if self.curriculum is not None:
+            levels = self.curriculum.sample_levels(len(ids), self.rng)
+        else:
+            r = self.traj_ranges
+            levels = self.rng.integers(r.n_waypoints_min, r.n_waypoints_max + 1, size=len(ids))
+        return trj.sample(len(ids), self.traj_ranges, self.rng, n_waypoints=levels), levels
+
+    def _reset_envs(self, ids: np.ndarray, terminated: np.ndarray, timed_out: np.ndarray) -> dict:
+        log = {}
+        finished = terminated | timed_out
+        if finished.any():
+            done = ids[finished]
+            for name, value in self.rewards.reset(torch.from_numpy(done)).items():
+                log[f"Episode_Reward/{name}"] = value
+            success = timed_out[finished]
+            log["Episode/success_rate"] = float(success.mean())
+            log["Episode/length_s"] = (
+                float(self.episode_length_buf[torch.from_numpy(done)].float().mean()) * self.dt_s
+            )
+            if self.curriculum is not None:
+                self.curriculum.update(self.traj_level[done], success)
+        if self.curriculum is not None:
+            log["Curriculum/level"] = float(self.curriculum.level)
+            log["Curriculum/success_rate"] = self.curriculum.success_rate
+
+        n = len(ids)
+        dr = self.cfg.domain_rand
+        if dr.enabled:
+            params = sample_intrinsics(n, dr.ranges, self.rng)
+        else:
+            params = nominal_intrinsics(n, self.cfg.platform.kd_factor_ref)
+        for name, value in vars(params).items():
+            getattr(self.intrinsics, name)[ids] = value
+        self.writer.write(ids, params)
+
+        new_traj, levels = self._next_trajectories(ids)
+        self.traj.replace_rows(ids, new_traj)
+        self.traj_level[ids] = levels
+
+        m = self.sim.model
+        qpos = np.tile(m.qpos0, (n, 1))
+        ix = self.index
+        yaw = self.rng.uniform(*self.cfg.init_state.yaw_range_rad, size=n)
+        qpos[:, ix.root_qpos : ix.root_qpos + 3] = [
+            0.0,
+            0.0,
+            self.plf_top_m + self.trunk_height_m + self.cfg.init_state.foot_clearance_m,
+        ]
+        qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(yaw)
+        qpos[:, ix.joint_qpos] = self.q_nominal
+        qpos[:, ix.plf_qpos] = 0.0
+        ctrl = np.zeros((n, m.nu))
+        ctrl[:, self.robot_act] = self.q_nominal
+        self.sim.reset(ids, qpos, np.zeros((n, m.nv)), ctrl, set_const=dr.enabled)
+
+        self.action[ids] = 0.0
+        self.action_prev[ids] = 0.0
+        self.tau_prev[ids] = 0.0
+        self.q_dot_prev[ids] = 0.0
+        self.contact_prev[ids] = False
+        self.t_air_s[ids] = 0.0
+        self.t_contact_s[ids] = 0.0
+        self._fresh = ids  # their history is filled with their first observation
+        return log
+
+    # -- observations --------------------------------------------------------------------------
+    def _observations(self) -> TensorDict:
+        r = read(self.sim, self.index)  # after resets: reset envs show their new state
+        self.readout = r
+        dev = self.device
+        o = np.concatenate(
+            [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - self.q_nominal, r.q_dot, self.action], axis=1
+        )
+        x_exp = np.concatenate([r.foot_contact, r.v_body_b, r.v_plf_b, r.omega_plf_b], axis=1)
+        x_imp = self.intrinsics.x_imp()
+        critic = np.concatenate([o, x_exp, x_imp, r.u_aln, r.p_body_p, r.phi_body_w], axis=1)
+        self.nonfinite_obs_values = 0
+        if not np.isfinite(critic).all():  # critic holds every other group: one check for all
+            self.nonfinite_obs_values = int((~np.isfinite(critic)).sum())
+            o, x_exp, x_imp, critic = (
+                np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0) for x in (o, x_exp, x_imp, critic)
+            )
+        u_aln = critic[:, OBS_DIM + X_EXP_DIM + X_IMP_DIM : OBS_DIM + X_EXP_DIM + X_IMP_DIM + 3]
+        clip = self.cfg.observations.clip
+        o_t = _t(np.clip(o, -clip, clip), dev)
+        # history holds the past observations, newest first; fresh envs see their first o
+        history = self.history
+        if self._fresh is not None:
+            fresh = torch.from_numpy(self._fresh)
+            history[fresh] = o_t[fresh].unsqueeze(1)
+            self._fresh = None
+        # the next step's history starts with this o (a new tensor: the one handed out stays as is)
+        self.history = torch.cat([o_t.unsqueeze(1), history[:, :-1]], dim=1)
+        return TensorDict(
+            {
+                "policy": o_t,
+                "history": history,
+                "priv_explicit": _t(x_exp, dev),
+                "priv_implicit": _t(x_imp, dev),
+                "alignment": _t(np.clip(u_aln, -clip, clip), dev),
+                "critic": _t(np.clip(critic, -clip, clip), dev),
+            },
+            batch_size=[self.num_envs],
+            device=dev,
+        )
+
+    # -- checkpoint state ----------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        return {"curriculum": self.curriculum.state_dict() if self.curriculum is not None else None}
+
+    def load_state_dict(self, d: dict) -> None:
+        if self.curriculum is not None and d.get("curriculum") is not None:
+            self.curriculum.load_state_dict(d["curriculum"])

@@ -1,0 +1,23 @@
+"""Command-line entry points, end to end at tiny sizes."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_env_throughput_bench_prints_one_json_object(tmp_path):
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "bench" / "env_throughput.py"), "--num-envs", "8", "--steps", "30",
+         "--raw-steps", "5", "--json"],
+        capture_output=True, text=True, check=True, cwd=tmp_path, timeout=300,
+    )  # fmt: skip
+    result = json.loads(out.stdout)
+    for key in ("env_steps_per_s", "raw_steps_per_s", "ratio", "stand_still_collision_rate", "env_physics_share"):
+        assert key in result, key
+    assert result["env_steps_per_s"] > 0 and result["raw_steps_per_s"] > 0
+    assert abs(result["ratio"] - result["env_steps_per_s"] / result["raw_steps_per_s"]) < 1e-2

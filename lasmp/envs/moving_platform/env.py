@@ -29,7 +29,7 @@ from lasmp.envs.moving_platform.domain_rand import (
     nominal_intrinsics,
     sample_intrinsics,
 )
-from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read
+from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read, update_rows
 from lasmp.envs.moving_platform.rewards import RewardManager, RewardParams
 from lasmp.envs.moving_platform.state import StepState
 from lasmp.envs.rotations import yaw_quat
@@ -259,8 +259,12 @@ class MovingPlatformEnv(BaseEnv):
 
     # -- observations --------------------------------------------------------------------------
     def _observations(self) -> TensorDict:
-        r = read(self.sim, self.index)  # after resets: reset envs show their new state
-        self.readout = r
+        # the readout of this step, with the envs reset since then read again (their new state)
+        if self.readout is None or (self._fresh is not None and len(self._fresh) == self.num_envs):
+            self.readout = read(self.sim, self.index)
+        elif self._fresh is not None:
+            update_rows(self.readout, self._fresh, read(self.sim, self.index, self._fresh))
+        r = self.readout
         dev = self.device
         o = np.concatenate(
             [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - self.q_nominal, r.q_dot, self.action], axis=1

@@ -71,8 +71,12 @@ class ReadoutIndex:
         self.foot_site = np.array([model.site(f).id for f in a1.FOOT_NAMES])
 
 
-def read(sim: CpuBatchSim, ix: ReadoutIndex) -> Readout:
+def read(sim: CpuBatchSim, ix: ReadoutIndex, rows: np.ndarray | None = None) -> Readout:
+    """The quantities of all envs, or of envs `rows` only (in that order)."""
     qpos, qvel, sd = sim.qpos, sim.qvel, sim.sensordata
+    site_xpos, actuator_force = sim.site_xpos, sim.actuator_force
+    if rows is not None:
+        qpos, qvel, sd, site_xpos, actuator_force = (x[rows] for x in (qpos, qvel, sd, site_xpos, actuator_force))
     p_body_w = qpos[:, ix.root_qpos : ix.root_qpos + 3].copy()
     quat = qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7]
     r_wb = quat_to_mat(quat / np.linalg.norm(quat, axis=1, keepdims=True))
@@ -98,7 +102,7 @@ def read(sim: CpuBatchSim, ix: ReadoutIndex) -> Readout:
     foot_contact = contact[:, :, 0] > 0
     # the sensor reports the force of the foot on the other body; the force on the foot is its negative
     f_feet_w = -contact[:, :, 1:4] * foot_contact[:, :, None]
-    p_feet_w = sim.site_xpos[:, ix.foot_site]
+    p_feet_w = site_xpos[:, ix.foot_site]
     v_feet_w = np.stack([sd[:, s] for s in ix.foot_linvel], axis=1)
     v_surface_w = v_plf_w[:, None, :] + np.cross(omega_plf_w[:, None, :], p_feet_w - p_plf_w[:, None, :])
     v_slip_p = rotate_inv(r_wp, v_feet_w - v_surface_w)[:, :, :2]
@@ -113,7 +117,7 @@ def read(sim: CpuBatchSim, ix: ReadoutIndex) -> Readout:
         gyro_b=sd[:, ix.gyro].copy(),
         q=qpos[:, ix.joint_qpos],
         q_dot=qvel[:, ix.joint_qvel],
-        tau=sim.actuator_force[:, ix.joint_act].copy(),
+        tau=actuator_force[:, ix.joint_act].copy(),
         p_plf_w=p_plf_w,
         r_wp=r_wp,
         v_plf_w=v_plf_w,
@@ -127,3 +131,9 @@ def read(sim: CpuBatchSim, ix: ReadoutIndex) -> Readout:
         v_slip_p=v_slip_p,
         body_collision=(sd[:, ix.collision] > 0).any(axis=1),
     )
+
+
+def update_rows(readout: Readout, rows: np.ndarray, sub: Readout) -> None:
+    """In place: the rows `rows` of `readout` take the values of `sub` (a readout of those rows)."""
+    for name, value in vars(sub).items():
+        getattr(readout, name)[rows] = value

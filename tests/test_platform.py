@@ -1,0 +1,297 @@
+"""Behaviour of the moving platform (SPEC §3) through the real env (fast: few envs, <= 3 s).
+
+Every test builds a `MovingPlatformEnv`, feeds its own references through
+`env._next_trajectories` (so that a reset after a fall replays the same reference from t = 0),
+steps with a = 0 (the robot stands under its joint PD) and reads the platform from the raw
+batch state (`env.sim.qpos/qvel`) and from `env.readout`.
+
+Measured values (seeds below; 2 threads) behind the documented bounds:
+- tracking, max |q_plf - ref| over the first 3 s of N = 5 train trajectories (16 envs, 5 seeds):
+  kp 1 / kd 0.025: 8.6-11.4 mm, 5.9-7.3 mrad; kp 0.5 / kd 0.01: 16.8-22.9 mm, 11.7-14.5 mrad;
+  kp 2 / kd 0.04: 6.9-8.9 mm, 4.6-6.0 mrad. Most of it is the half-step lag of the reference,
+  which is held over a policy step at t + ref_lead_s (0.01 s): ~ v * 0.01 s at the step's end.
+- platform velocity sampled at the policy-step ends reads ~1.8 % below the reference at
+  constant speed (ZOH position reference -> 50 Hz velocity ripple inside the step; the
+  displacement per step is exact). The bounds below leave room for it.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+import torch
+
+from lasmp.envs import trajectories as trj
+from lasmp.envs.moving_platform.env import MovingPlatformEnv
+from lasmp.envs.scene import PLATFORM_JOINTS, POSE_TO_JOINT, platform_gains
+
+T_CHECK_S = 3.0  # horizon of every test
+T_RAMP_S = 1.0  # smooth velocity ramp of the user-made references
+T_SETTLED_S = 1.5  # checks of the constant-velocity phase start here
+
+
+def _make_env(n: int, refs: trj.PiecewiseCubic, seed: int = 0, **cfg) -> MovingPlatformEnv:
+    env = MovingPlatformEnv({"num_envs": n, "seed": seed, "sim": {"num_threads": 2}, **cfg})
+    assert len(refs) == n
+    # every (re)set env gets its own row of `refs`: after a fall the same reference restarts at t = 0
+    env._next_trajectories = lambda ids: (refs.subset(ids), np.full(len(ids), -1))
+    env.reset()
+    return env
+
+
+def _ramp_refs(n: int, pose_axis: int, rate: float, t_end_s: float = T_CHECK_S + 1.0) -> trj.PiecewiseCubic:
+    """Pose component `pose_axis` accelerates smoothly (smoothstep velocity) to `rate` over
+    T_RAMP_S, then moves at constant `rate`; sampled every 0.05 s (not-a-knot spline)."""
+    t = np.arange(0.0, t_end_s + 1e-9, 0.05)
+    s = np.clip(t / T_RAMP_S, 0.0, 1.0)
+    pos = np.where(t < T_RAMP_S, rate * T_RAMP_S * (s**3 - 0.5 * s**4), rate * (t - 0.5 * T_RAMP_S))
+    poses = np.zeros((n, len(t), 6))
+    poses[:, :, pose_axis] = pos
+    return trj.from_samples(t, poses)
+
+
+def _plf_dofs(env: MovingPlatformEnv) -> np.ndarray:
+    return np.array([env.sim.model.joint(j).dofadr[0] for j in PLATFORM_JOINTS])
+
+
+def _steps(env: MovingPlatformEnv, t_s: float) -> int:
+    return int(round(t_s / env.dt_s))
+
+
+def _quat_yaw(q: np.ndarray) -> np.ndarray:
+    """Yaw (ZYX) of (n, 4) MuJoCo quaternions (w, x, y, z)."""
+    w, x, y, z = q.T
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+# --------------------------------------------------------------------------------------------
+# 1. Tracking
+# --------------------------------------------------------------------------------------------
+# (kp factor, kd factor, bound translation m, bound rotation rad)
+TRACKING_CASES = [
+    pytest.param(1.0, 0.025, 0.020, 0.012, id="nominal"),
+    pytest.param(0.5, 0.01, 0.035, 0.025, id="test-soft"),
+    pytest.param(2.0, 0.04, 0.035, 0.025, id="test-stiff"),
+]
+
+
+@pytest.mark.parametrize("kp_f, kd_f, bound_m, bound_rad", TRACKING_CASES)
+def test_tracking_error_of_generated_reference(kp_f, kd_f, bound_m, bound_rad):
+    n = 8
+    refs = trj.sample(n, trj.TRAIN_RANGES, np.random.default_rng(100), n_waypoints=5)
+    if kp_f == 1.0 and kd_f == 0.025:
+        cfg = {"domain_rand": {"enabled": False}}  # the nominal factors
+    else:  # degenerate test ranges: every reset draws exactly these factors
+        cfg = {
+            "domain_rand": {
+                "split": "test",
+                "test": {"platform_kp_factor": [kp_f, kp_f], "platform_kd_factor": [kd_f, kd_f]},
+            }
+        }
+    env = _make_env(n, refs, **cfg)
+    # the factors reached the batch's actuators
+    gains = platform_gains(env.cfg.platform)
+    np.testing.assert_allclose(env.intrinsics.platform_kp_factor, kp_f)
+    np.testing.assert_allclose(env.intrinsics.platform_kd_factor, kd_f)
+    gainprm = env.sim.expand("actuator_gainprm")
+    np.testing.assert_allclose(gainprm[:, env.plf_act_pos, 0], np.broadcast_to(gains.kp * kp_f, (n, 6)))
+    np.testing.assert_allclose(gainprm[:, env.plf_act_vel, 0], np.broadcast_to(gains.kd * kd_f, (n, 6)))
+
+    err_max = np.zeros(6)  # PLATFORM_JOINTS order: x, y, z, yaw, pitch, roll
+    samples = 0
+    a = torch.zeros(n, 12)
+    for _ in range(_steps(env, T_CHECK_S)):
+        env.step(a)
+        # episode time of every env (0 for envs just reset, where platform and reference are 0)
+        t = env.episode_length_buf.numpy() * env.dt_s
+        live = t > 0
+        ref = env.traj.evaluate(t)[0][:, POSE_TO_JOINT]
+        err = np.abs(env.sim.qpos[:, env.index.plf_qpos] - ref)[live]
+        samples += int(live.sum())
+        err_max = np.maximum(err_max, err.max(axis=0, initial=0.0))
+    trans, rot = err_max[:3].max(), err_max[3:].max()
+    msg = (
+        f"kp {kp_f} kd {kd_f}: max |error| x,y,z = {np.round(err_max[:3] * 1e3, 2)} mm, "
+        f"yaw,pitch,roll = {np.round(err_max[3:] * 1e3, 2)} mrad over {samples} env-steps"
+    )
+    print(msg)
+    assert samples >= 0.9 * n * _steps(env, T_CHECK_S), msg
+    assert trans < bound_m, f"translation error above {bound_m * 1e3:.0f} mm: {msg}"
+    assert rot < bound_rad, f"rotation error above {bound_rad * 1e3:.0f} mrad: {msg}"
+    # closely but not perfectly (SPEC §3): a zero error would mean the test reads the reference
+    assert trans > 1e-3 and rot > 1e-4, f"suspiciously perfect tracking: {msg}"
+
+
+# --------------------------------------------------------------------------------------------
+# 2. The robot is carried along by friction
+# --------------------------------------------------------------------------------------------
+def test_standing_robot_is_carried_along_x():
+    n, v = 4, 0.5
+    env = _make_env(n, _ramp_refs(n, 0, v), domain_rand={"enabled": False})
+    root, root_v = env.index.root_qpos, env.index.root_qvel
+    x_dof = _plf_dofs(env)[0]
+    a = torch.zeros(n, 12)
+    k0, k1 = _steps(env, T_SETTLED_S), _steps(env, T_CHECK_S)
+    trunk, plf, v_trunk, p_rel = [], [], [], []
+    for k in range(1, k1 + 1):
+        _, _, done, _ = env.step(a)
+        assert not done.any(), f"robot fell/reset at t = {k * env.dt_s:.2f} s while standing"
+        if k >= k0:
+            trunk.append(env.sim.qpos[:, root : root + 3].copy())
+            plf.append(env.sim.qpos[:, env.index.plf_qpos[:3]].copy())
+            v_trunk.append(env.sim.qvel[:, root_v : root_v + 3].copy())  # world frame
+            p_rel.append(env.readout.p_body_p.copy())
+    trunk, plf, v_trunk, p_rel = map(np.array, (trunk, plf, v_trunk, p_rel))
+    dur = (k1 - k0) * env.dt_s
+    v_trunk_fd = (trunk[-1] - trunk[0]) / dur
+    v_plf_fd = (plf[-1] - plf[0]) / dur
+    ratio = v_trunk_fd[:, 0] / v_plf_fd[:, 0]
+    msg = (
+        f"trunk/platform velocity ratio {np.round(ratio, 4)} (platform {np.round(v_plf_fd[:, 0], 4)} m/s), "
+        f"per-step trunk vx in [{v_trunk[:, :, 0].min():.4f}, {v_trunk[:, :, 0].max():.4f}], "
+        f"max |vy| {np.abs(v_trunk[:, :, 1]).max():.4f}, platform qvel x at step ends "
+        f"{env.sim.qvel[0, x_dof]:.4f}"
+    )
+    print(msg)
+    np.testing.assert_allclose(v_plf_fd[:, 0], v, rtol=0.01, err_msg=msg)  # the platform itself moves at v
+    assert np.all(np.abs(ratio - 1.0) < 0.05), msg
+    assert np.all(np.abs(v_trunk[:, :, 0] / v - 1.0) < 0.05), f"per-step trunk velocity off by > 5 %: {msg}"
+    assert np.abs(v_trunk[:, :, 1]).max() < 0.05 * v, msg
+    slip = np.abs(p_rel[-1, :, :2] - p_rel[0, :, :2]).max()
+    assert slip < 0.02, f"trunk moved {slip * 1e3:.1f} mm relative to the platform: {msg}"
+
+
+# --------------------------------------------------------------------------------------------
+# 3. Yawing platform: the readout's platform quantities agree with the riding robot's
+# --------------------------------------------------------------------------------------------
+def test_yawing_platform_readout_consistent_with_riding_robot():
+    n, rate = 4, 0.5
+    env = _make_env(n, _ramp_refs(n, 5, rate), domain_rand={"enabled": False})  # pose 5 = yaw
+    a = torch.zeros(n, 12)
+    k0, k1 = _steps(env, T_SETTLED_S), _steps(env, T_CHECK_S)
+    u, w_plf, dv, dw, r_xy = [], [], [], [], []
+    for k in range(1, k1 + 1):
+        obs, _, done, _ = env.step(a)
+        assert not done.any(), f"robot fell/reset at t = {k * env.dt_s:.2f} s while standing"
+        r = env.readout
+        np.testing.assert_allclose(obs["alignment"].numpy(), r.u_aln, atol=1e-5)  # obs = readout
+        if k >= k0:
+            u.append(r.u_aln.copy())
+            w_plf.append(r.omega_plf_b[:, 2].copy())
+            dv.append(np.linalg.norm(r.v_plf_b - r.v_body_b, axis=1))
+            dw.append(np.linalg.norm(r.omega_plf_b - r.omega_body_b, axis=1))
+            r_xy.append(np.linalg.norm(r.p_body_p[:, :2], axis=1))
+    u, w_plf, dv, dw, r_xy = map(np.array, (u, w_plf, dv, dw, r_xy))
+    u_max = np.abs(u).max(axis=(0, 1))
+    msg = (
+        f"max |u_aln| = {np.round(u_max, 4)} (vx, vy m/s, wz rad/s); omega_plf_b,z in "
+        f"[{w_plf.min():.4f}, {w_plf.max():.4f}] for rate {rate}; max |v_plf_b - v_body_b| "
+        f"{dv.max():.4f} m/s, max |omega_plf_b - omega_body_b| {dw.max():.4f} rad/s; "
+        f"trunk within {r_xy.max() * 1e3:.1f} mm of the centre"
+    )
+    print(msg)
+    assert r_xy.max() < 0.1, msg  # the robot still stands near the centre
+    assert np.all(u_max[:2] < 0.03), msg
+    assert u_max[2] < 0.025, msg  # 5 % of the yaw rate
+    assert dv.max() < 0.03 and dw.max() < 0.05, msg
+    assert np.all(np.abs(w_plf / rate - 1.0) < 0.03), msg
+
+
+# --------------------------------------------------------------------------------------------
+# 4. The platform is heavy: a standing robot barely disturbs it
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        pytest.param({"domain_rand": {"enabled": False}}, id="nominal"),
+        pytest.param(  # the softest test-range platform under the heaviest test-range trunk
+            {
+                "domain_rand": {
+                    "split": "test",
+                    "test": {
+                        "platform_kp_factor": [0.5, 0.5],
+                        "platform_kd_factor": [0.01, 0.01],
+                        "trunk_mass_kg": [5.5, 5.5],
+                    },
+                }
+            },
+            id="test-soft-heavy",
+        ),
+    ],
+)
+def test_static_platform_barely_disturbed_by_robot(cfg):
+    n = 4
+    env = _make_env(n, trj.from_samples(np.array([0.0, 1.0]), np.zeros((n, 2, 6))), seed=1, **cfg)
+    a = torch.zeros(n, 12)
+    err = np.zeros(6)
+    for k in range(1, _steps(env, 2.0) + 1):
+        _, _, done, _ = env.step(a)
+        assert not done.any(), f"robot fell/reset at t = {k * env.dt_s:.2f} s on a static platform"
+        err = np.maximum(err, np.abs(env.sim.qpos[:, env.index.plf_qpos]).max(axis=0))
+    sag = -env.sim.qpos[:, env.index.plf_qpos[2]]
+    # static sag = robot weight / kp_z (the platform is gravity-compensated)
+    m = env.sim.model
+    robot_mass = env.sim.expand("body_mass")[:, 1:].sum(axis=1) - env.cfg.platform.mass_kg
+    kp_z = env.sim.expand("actuator_gainprm")[:, env.plf_act_pos[2], 0]
+    sag_expected = robot_mass * -m.opt.gravity[2] / kp_z
+    msg = (
+        f"max |x,y,z| = {np.round(err[:3] * 1e3, 4)} mm, max |yaw,pitch,roll| = "
+        f"{np.round(err[3:] * 1e3, 4)} mrad; final sag {np.round(sag * 1e3, 4)} mm "
+        f"(weight/kp_z {np.round(sag_expected * 1e3, 4)} mm)"
+    )
+    print(msg)
+    assert err[:3].max() < 1e-3, msg
+    assert err[3:].max() < 1e-3, msg  # 1 mrad = 1 mm at the platform's edge
+    np.testing.assert_allclose(sag, sag_expected, rtol=0.1, err_msg=msg)
+
+
+# --------------------------------------------------------------------------------------------
+# 5. v_plf_b is expressed in the (yawed) trunk frame
+# --------------------------------------------------------------------------------------------
+def test_platform_velocity_in_yawed_body_frame():
+    n, v = 8, 0.5
+    env = _make_env(n, _ramp_refs(n, 0, v), seed=0, domain_rand={"enabled": False})
+    root = env.index.root_qpos
+    dofs = _plf_dofs(env)
+    yaw0 = _quat_yaw(env.sim.qpos[:, root + 3 : root + 7].copy())
+    quadrants = np.unique(np.floor((yaw0 + np.pi) / (np.pi / 2)).astype(int))
+    assert len(quadrants) == 4, f"the seed must give start yaws in all four quadrants, got {yaw0}"
+    a = torch.zeros(n, 12)
+    k0, k1 = _steps(env, T_SETTLED_S), _steps(env, T_CHECK_S)
+    err_yaw, err_full = 0.0, 0.0
+    for k in range(1, k1 + 1):
+        _, _, done, _ = env.step(a)
+        assert not done.any(), f"robot fell/reset at t = {k * env.dt_s:.2f} s while standing"
+        if k < k0:
+            continue
+        v_plf_b = env.readout.v_plf_b
+        quat = env.sim.qpos[:, root + 3 : root + 7].copy()
+        yaw = _quat_yaw(quat)
+        vx = env.sim.qvel[:, dofs[0]]  # the platform's own x velocity (world x)
+        # yaw-only frame: R_wb^T [v, 0, 0] = [v cos(yaw), -v sin(yaw), 0] for a level trunk
+        expect = np.stack([vx * np.cos(yaw), -vx * np.sin(yaw)], axis=1)
+        err_yaw = max(err_yaw, float(np.abs(v_plf_b[:, :2] - expect).max()))
+        # signs, explicitly, where the component is clearly nonzero
+        for comp, ref in ((0, np.cos(yaw)), (1, -np.sin(yaw))):
+            sel = np.abs(ref) > 0.3
+            assert np.all(np.sign(v_plf_b[sel, comp]) == np.sign(ref[sel])), (
+                f"v_plf_b[:, {comp}] = {v_plf_b[sel, comp]} has the wrong sign for yaw {yaw[sel]}"
+            )
+        # full trunk orientation from the quaternion (MuJoCo's own conversion), all 3 components
+        r_wb = np.empty((n, 9))
+        for i in range(n):
+            mujoco.mju_quat2Mat(r_wb[i], quat[i] / np.linalg.norm(quat[i]))
+        r_wb = r_wb.reshape(n, 3, 3)
+        w_plf = env.sim.qvel[:, dofs[3:]]  # yaw, pitch, roll rates; ~0 here
+        lever = env.sim.qpos[:, root : root + 3] - env.sim.qpos[:, env.index.plf_qpos[:3]]
+        v_w = env.sim.qvel[:, dofs[:3]] + np.cross(np.c_[w_plf[:, 2], w_plf[:, 1], w_plf[:, 0]], lever)
+        err_full = max(err_full, float(np.abs(v_plf_b - np.einsum("nji,nj->ni", r_wb, v_w)).max()))
+        np.testing.assert_allclose(vx, v, rtol=0.03)  # the platform moves along +x at ~v
+    msg = (
+        f"start yaws {np.round(yaw0, 3)}; max |v_plf_b,xy - Rz(yaw)^T [v,0,0]| = {err_yaw:.5f} m/s, "
+        f"max |v_plf_b - R_wb^T v_w| = {err_full:.2e} m/s"
+    )
+    print(msg)
+    assert err_yaw < 0.01, msg  # roll/pitch of the standing trunk are small
+    assert err_full < 1e-3, msg

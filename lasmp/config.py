@@ -152,14 +152,12 @@ class PlatformCfg:
     bandwidth_hz: float = 4.0  # (ours) tracks 10-s trajectories closely but not perfectly
     damping_ratio: float = 0.7  # (ours) at kd factor == kd_factor_ref
     kd_factor_ref: float = 0.025  # midpoint of the paper's training damping factor range
-    ref_lead_s: float = 0.01  # reference is held over a policy step at t + lead (mid-step) (ours)
 
     def validate(self, p: str):
         if len(self.size_m) != 3 or min(self.size_m) <= 0:
             raise ConfigError(f"{p}.size_m must be three positive lengths, got {list(self.size_m)}")
         for name in ("mass_kg", "friction", "bandwidth_hz", "damping_ratio", "kd_factor_ref"):
             _positive(f"{p}.{name}", getattr(self, name))
-        _positive(f"{p}.ref_lead_s", self.ref_lead_s, allow_zero=True)
 
 
 @dataclass

@@ -17,7 +17,13 @@ def test_env_throughput_bench_prints_one_json_object(tmp_path):
         capture_output=True, text=True, check=True, cwd=tmp_path, timeout=300,
     )  # fmt: skip
     result = json.loads(out.stdout)
-    for key in ("env_steps_per_s", "raw_steps_per_s", "ratio", "stand_still_collision_rate", "env_physics_share"):
+    for key in (
+        "env_steps_per_s",
+        "raw_steps_per_s",
+        "ratio",
+        "stand_still_collision_rate",
+        "env_physics_share",
+    ):
         assert key in result, key
     assert result["env_steps_per_s"] > 0 and result["raw_steps_per_s"] > 0
     assert abs(result["ratio"] - result["env_steps_per_s"] / result["raw_steps_per_s"]) < 1e-2

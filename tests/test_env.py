@@ -220,12 +220,12 @@ def test_batched_step_equals_a_serial_mj_step_loop():
     env = make(4)
     for _ in range(10):
         env.step(0.5 * torch.randn(4, 12))
+    env._apply_actions(0.5 * np.random.default_rng(0).standard_normal((4, 12)))  # ctrl and act set
     batch = env.sim.batch
-    models = [batch.get_model(i) for i in range(4)]
-    datas = [batch.get_data(i) for i in range(4)]
-    env.step(0.5 * torch.randn(4, 12))
+    models = [batch.get_model(i) for i in range(4)]  # with each env's randomized parameters
+    datas = [batch.get_data(i) for i in range(4)]  # state, controls and servo targets
+    assert not env.sim.step(env.cfg.sim.decimation).any()
     for i in range(4):
-        datas[i].ctrl[:] = env.sim.ctrl[i]
         for _ in range(env.cfg.sim.decimation):
             mujoco.mj_step(models[i], datas[i])
         assert np.array_equal(datas[i].qpos, env.sim.qpos[i]), i

@@ -4,9 +4,10 @@ World = our A1 (attached from its MJCF) + a 2 x 2 x 0.2 m box platform on six ac
 joints. The platform chain is slide x, y, z (world axes), then hinge yaw (z), pitch (y),
 roll (x), so its joint angles are ZYX Euler angles: R_wp = Rz(yaw) Ry(pitch) Rx(roll), the
 convention of `lasmp.envs.trajectories`. Every platform joint is driven by a PD made of two
-actuators, a `position` one (kp, ctrl = reference position) and a `velocity` one (kd, ctrl =
-reference velocity), so that force = kp (x_ref - x) + kd (v_ref - v) runs inside the physics
-substeps. The platform is gravity-compensated (`gravcomp`), so the z axis needs no bias force.
+actuators: an `intvelocity` one (kp; its activation is the reference position, set at each
+policy step and ramped by ctrl = the reference's mean velocity over the step, so it reaches the
+next reference exactly) and a `velocity` one (kd, ctrl = reference velocity). Together,
+force = kp (x_ref - x) + kd (v_ref - v) runs inside the physics substeps. The platform is gravity-compensated (`gravcomp`), so the z axis needs no bias force.
 
 The platform is a real dynamic body, not a mocap body: MuJoCo gives mocap bodies zero contact
 velocity, so friction would not carry the robot along.
@@ -105,10 +106,12 @@ def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
     body.add_site(name="platform_centre")
     for j, name in enumerate(PLATFORM_JOINTS):
         kp, kd = float(gains.kp[j]), float(gains.kd[j])
+        # integrated-velocity position servo: its target (the actuator's `act`) ramps at rate ctrl
+        # within a policy step, so the reference moves smoothly instead of jumping every 20 ms
         pos = spec.add_actuator(name=f"{name}_pos", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        pos.set_to_position(kp=kp)
+        pos.set_to_intvelocity(kp=kp)
         vel = spec.add_actuator(name=f"{name}_vel", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        vel.set_to_velocity(kv=kd * 0.025)  # nominal factor; the env writes per-env gains
+        vel.set_to_velocity(kv=kd * platform.kd_factor_ref)  # nominal; the env writes per-env gains
 
     for leg in a1.LEG_NAMES:  # a foot's friction (randomized) decides its contacts, not the platform's
         spec.geom(f"{leg}_foot").priority = 1

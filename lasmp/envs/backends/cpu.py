@@ -33,6 +33,7 @@ class CpuBatchSim:
         self.qpos = b.bind("qpos")
         self.qvel = b.bind("qvel")
         self.ctrl = b.bind("ctrl")
+        self.act = b.bind("act")
         self.sensordata = b.bind("sensordata")
         self.site_xpos = b.bind("site_xpos")
         self.actuator_force = b.bind("actuator_force")

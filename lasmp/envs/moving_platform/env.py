@@ -64,6 +64,7 @@ class MovingPlatformEnv(BaseEnv):
         self.trunk_height_m = a1.nominal_trunk_height_m(model)
         self.plf_act_pos = np.array([model.actuator(f"{j}_pos").id for j in PLATFORM_JOINTS])
         self.plf_act_vel = np.array([model.actuator(f"{j}_vel").id for j in PLATFORM_JOINTS])
+        self.plf_act_adr = model.actuator_actadr[self.plf_act_pos]  # servo targets in `act`
         self.robot_act = self.index.joint_act
 
         tc, cc = cfg.trajectory, cfg.curriculum
@@ -116,11 +117,15 @@ class MovingPlatformEnv(BaseEnv):
         self.action[:] = actions
         ctrl = self.sim.ctrl
         ctrl[:, self.robot_act] = self.q_nominal + self.cfg.control.action_scale * actions
-        # hold the reference sampled mid-step over the decimation substeps
-        t_s = self.episode_length_buf.numpy() * self.dt_s + self.cfg.platform.ref_lead_s
-        x_ref, v_ref = self._platform_reference(t_s)
-        ctrl[:, self.plf_act_pos] = x_ref
-        ctrl[:, self.plf_act_vel] = v_ref
+        # the kp servo's target starts at x_ref(t) and ramps to x_ref(t + dt) within the step;
+        # the damping term tracks the reference velocity at mid-step
+        t_s = self.episode_length_buf.numpy() * self.dt_s
+        x_now, _ = self._platform_reference(t_s)
+        x_next, _ = self._platform_reference(t_s + self.dt_s)
+        _, v_mid = self._platform_reference(t_s + 0.5 * self.dt_s)
+        self.sim.act[:, self.plf_act_adr] = x_now
+        ctrl[:, self.plf_act_pos] = (x_next - x_now) / self.dt_s
+        ctrl[:, self.plf_act_vel] = v_mid
 
     # -- evaluation ----------------------------------------------------------------------------
     def _fell(self, r: Readout) -> np.ndarray:

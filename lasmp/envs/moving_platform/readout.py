@@ -76,7 +76,9 @@ def read(sim: CpuBatchSim, ix: ReadoutIndex, rows: np.ndarray | None = None) -> 
     qpos, qvel, sd = sim.qpos, sim.qvel, sim.sensordata
     site_xpos, actuator_force = sim.site_xpos, sim.actuator_force
     if rows is not None:
-        qpos, qvel, sd, site_xpos, actuator_force = (x[rows] for x in (qpos, qvel, sd, site_xpos, actuator_force))
+        qpos, qvel, sd, site_xpos, actuator_force = (
+            x[rows] for x in (qpos, qvel, sd, site_xpos, actuator_force)
+        )
     p_body_w = qpos[:, ix.root_qpos : ix.root_qpos + 3].copy()
     quat = qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7]
     r_wb = quat_to_mat(quat / np.linalg.norm(quat, axis=1, keepdims=True))

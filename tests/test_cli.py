@@ -12,8 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_env_throughput_bench_prints_one_json_object(tmp_path):
     out = subprocess.run(
-        [sys.executable, str(ROOT / "bench" / "env_throughput.py"), "--num-envs", "8", "--steps", "30",
-         "--raw-steps", "5", "--json"],
+        [sys.executable, str(ROOT / "bench" / "env_throughput.py"), "--num-envs", "8", "--steps", "30", "--json"],
         capture_output=True, text=True, check=True, cwd=tmp_path, timeout=300,
     )  # fmt: skip
     result = json.loads(out.stdout)

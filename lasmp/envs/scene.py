@@ -25,11 +25,19 @@ from lasmp.config import PlatformCfg, SimCfg
 from lasmp.robots import a1
 
 PLATFORM_JOINTS = ("plf_x", "plf_y", "plf_z", "plf_yaw", "plf_pitch", "plf_roll")
-# Index of each trajectory pose component [x, y, z, roll, pitch, yaw] in PLATFORM_JOINTS order.
+# For each platform joint (PLATFORM_JOINTS order): the index of its component in a trajectory
+# pose [x, y, z, roll, pitch, yaw].
 POSE_TO_JOINT = np.array([0, 1, 2, 5, 4, 3])
-NON_FOOT_BODIES = ("trunk",) + tuple(
-    f"{leg}_{link}" for leg in a1.LEG_NAMES for link in ("hip", "thigh", "calf")
-)
+_JOINT_AXES = {
+    "plf_x": [1, 0, 0],
+    "plf_y": [0, 1, 0],
+    "plf_z": [0, 0, 1],
+    "plf_yaw": [0, 0, 1],
+    "plf_pitch": [0, 1, 0],
+    "plf_roll": [1, 0, 0],
+}
+# bodies whose contacts are collisions: the A1's links carry one collision geom each, named as the body
+NON_FOOT_BODIES = a1.NON_FOOT_COLLISION_GEOMS
 
 
 @dataclass(frozen=True)
@@ -78,20 +86,9 @@ def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
     gains = platform_gains(platform)
     body = world.add_body(name="platform", gravcomp=1.0)
     for name in PLATFORM_JOINTS:
-        axis = {
-            "x": [1, 0, 0],
-            "y": [0, 1, 0],
-            "z": [0, 0, 1],
-            "roll": [1, 0, 0],
-            "pitch": [0, 1, 0],
-            "yaw": [0, 0, 1],
-        }
-        kind = (
-            mujoco.mjtJoint.mjJNT_SLIDE
-            if name in ("plf_x", "plf_y", "plf_z")
-            else mujoco.mjtJoint.mjJNT_HINGE
-        )
-        body.add_joint(name=name, type=kind, axis=axis[name.split("_")[1]])
+        slide = name in ("plf_x", "plf_y", "plf_z")
+        kind = mujoco.mjtJoint.mjJNT_SLIDE if slide else mujoco.mjtJoint.mjJNT_HINGE
+        body.add_joint(name=name, type=kind, axis=_JOINT_AXES[name])
     half = [s / 2.0 for s in platform.size_m]
     body.add_geom(
         name="platform",
@@ -116,11 +113,8 @@ def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
     for leg in a1.LEG_NAMES:  # a foot's friction (randomized) decides its contacts, not the platform's
         spec.geom(f"{leg}_foot").priority = 1
 
-    def sensor(name, stype, objtype, objname, **kw):
-        s = spec.add_sensor(name=name, type=stype, objtype=objtype, objname=objname)
-        for k, v in kw.items():
-            setattr(s, k, v)
-        return s
+    def sensor(name, stype, objtype, objname):
+        return spec.add_sensor(name=name, type=stype, objtype=objtype, objname=objname)
 
     site = mujoco.mjtObj.mjOBJ_SITE
     sensor("plf_linvel", mujoco.mjtSensor.mjSENS_FRAMELINVEL, site, "platform_centre")

@@ -20,7 +20,7 @@ class StepState:
     phi_body_w: torch.Tensor  # (n, 3) trunk roll, pitch, yaw in the world (ZYX Euler), rad
     v_body_b: torch.Tensor  # (n, 3) trunk linear velocity, body frame, m/s
     omega_body_b: torch.Tensor  # (n, 3) trunk angular velocity, body frame, rad/s
-    v_plf_b: torch.Tensor  # (n, 3) platform linear velocity (at its CoM), body frame, m/s
+    v_plf_b: torch.Tensor  # (n, 3) velocity of the platform point under the trunk origin, body frame, m/s
     omega_plf_b: torch.Tensor  # (n, 3) platform angular velocity, body frame, rad/s
     u_aln: torch.Tensor  # (n, 3) alignment command [v_plf_xy - v_body_xy, w_plf_z - w_body_z] in b
     action: torch.Tensor  # (n, 12) current action a_t

@@ -1,0 +1,87 @@
+"""PPO with Regularized Online Adaptation (SPEC §9), an extension of rsl_rl's `PPO`.
+
+`update()` first runs rsl_rl's PPO update unchanged (actor backbone, implicit encoder, action
+std and critic; the estimators get no PPO gradient). It then makes one pass over the same
+rollout (rsl_rl's `storage.clear()` only rewinds the write cursor, so the data are still there)
+with the adaptation losses of `LasmpActor.roa_losses`:
+
+    L_exp = ||x_exp_hat - x_exp||^2
+    L_imp = ||l_imp_hat - sg[l_imp]||^2  +  lambda * ||sg[l_imp_hat] - l_imp||^2,  lambda = 0.2
+
+Our choices (SPEC leaves them open): the estimators have their own Adam optimizer
+(`estimator_learning_rate`); the encoder's regularization term (the second of L_imp) steps the
+encoder through PPO's optimizer, in a step of its own in which no other parameter has a
+gradient; lambda is constant (no ramp); rollouts always act with privileged inputs.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn as nn
+from rsl_rl.algorithms import PPO
+
+
+class PPOROA(PPO):
+    def __init__(
+        self,
+        actor,
+        critic,
+        storage,
+        roa_lambda: float = 0.2,
+        estimator_learning_rate: float = 1e-3,
+        estimator_epochs: int = 1,
+        **kwargs,
+    ) -> None:
+        super().__init__(actor, critic, storage, **kwargs)
+        if roa_lambda < 0:
+            raise ValueError(f"algorithm.roa_lambda must be >= 0, got {roa_lambda}")
+        if estimator_epochs < 1:
+            raise ValueError(f"algorithm.estimator_epochs must be >= 1, got {estimator_epochs}")
+        self.roa_lambda = roa_lambda
+        self.estimator_epochs = estimator_epochs
+        self._estimator_params = list(actor.estimator_parameters())
+        self.estimator_optimizer = torch.optim.Adam(self._estimator_params, lr=estimator_learning_rate)
+
+    def update(self) -> dict[str, float]:
+        loss_dict = super().update()
+        loss_dict.update(self.update_roa())
+        return loss_dict
+
+    def update_roa(self) -> dict[str, float]:
+        """One ROA pass over the stored rollout; returns the mean losses and estimation errors."""
+        sums: dict[str, float] = {}
+        count = 0
+        for batch in self.storage.mini_batch_generator(self.num_mini_batches, self.estimator_epochs):
+            losses = self.actor.roa_losses(batch.observations, self.roa_lambda)
+            total = sum(losses.values())
+            self.optimizer.zero_grad()
+            self.estimator_optimizer.zero_grad()
+            total.backward()
+            nn.utils.clip_grad_norm_(self._estimator_params, self.max_grad_norm)
+            self.estimator_optimizer.step()
+            for (
+                p
+            ) in self._estimator_params:  # PPO's optimizer steps only what the λ term reaches: the encoder
+                p.grad = None
+            self.optimizer.step()
+            for key, value in losses.items():
+                sums[f"roa_{key}"] = sums.get(f"roa_{key}", 0.0) + value.item()
+            count += 1
+        out = {key: value / max(count, 1) for key, value in sums.items()}
+        with torch.no_grad():
+            sample = self.storage.observations.flatten(0, 1)
+            out.update({f"Estimator/{k}": v for k, v in self.actor.estimation_errors(sample).items()})
+        return out
+
+    def save(self) -> dict:
+        saved = super().save()
+        saved["estimator_optimizer_state_dict"] = self.estimator_optimizer.state_dict()
+        return saved
+
+    def load(self, loaded_dict: dict, load_cfg: dict | None, strict: bool) -> bool:
+        load_iteration = super().load(loaded_dict, load_cfg, strict)
+        if (
+            load_cfg is None or load_cfg.get("optimizer")
+        ) and "estimator_optimizer_state_dict" in loaded_dict:
+            self.estimator_optimizer.load_state_dict(loaded_dict["estimator_optimizer_state_dict"])
+        return load_iteration

@@ -1,0 +1,240 @@
+"""The composed LAS-MP policy: backbone + implicit encoder + history estimators (SPEC §7-9).
+
+Usable as rsl_rl's actor: ``{"class_name": "lasmp.modules.policy:LasmpActor", ...}``.
+"""
+
+from __future__ import annotations
+
+import torch
+from rsl_rl.models import MLPModel
+from tensordict import TensorDict
+from torch import nn
+
+from lasmp.modules.actor import (
+    GROUP_ALIGNMENT,
+    GROUP_EXPLICIT,
+    GROUP_HISTORY,
+    GROUP_IMPLICIT,
+    GROUP_OBS,
+    GYRO_Z_COL,
+    U_ALN_NAMES,
+    X_EXP_NAMES,
+    alignment_from_estimates,
+    explicit_indices,
+)
+from lasmp.modules.encoder import ImplicitEncoder
+from lasmp.modules.estimator import HistoryEstimator
+from lasmp.modules.export import LasmpDeployPolicy
+
+
+class LasmpActor(MLPModel):
+    """LAS-MP actor: b_theta([o, x_exp, u_aln]_normalized, l_imp[, o^H normalized, flattened]) -> action mean.
+
+    Training mode (``deploy=False``) uses the true privileged groups: x_exp = `priv_explicit`,
+    l_imp = encoder(`priv_implicit`), u_aln = `alignment`. Deployment mode (``deploy=True``) uses only
+    `policy` and `history`: x_exp_hat and l_imp_hat from the history estimators, and u_aln_hat built
+    from x_exp_hat (raw units) with the measured yaw rate o[:, 5].
+
+    Normalization: one EmpiricalNormalization (the model's) over [o, x_exp(selected), u_aln]; the
+    history is normalized per time step with the o-part of the same statistics. The encoder owns
+    its own x_imp normalizer. Estimators predict raw (unnormalized) x_exp.
+    """
+
+    def __init__(
+        self,
+        obs: TensorDict,
+        obs_groups: dict[str, list[str]],
+        obs_set: str,
+        output_dim: int,
+        hidden_dims: tuple[int, ...] | list[int] = (512, 256, 128),
+        activation: str = "elu",
+        obs_normalization: bool = True,
+        distribution_cfg: dict | None = None,
+        latent_dim: int = 16,
+        encoder_hidden_dims: tuple[int, ...] | list[int] = (64,),
+        estimator_mlp_dim: int = 32,
+        estimator_channels: int = 32,
+        use_alignment: bool = True,
+        explicit: str = "all",
+        history_input: bool = False,
+    ) -> None:
+        sel = explicit_indices(explicit)
+        if use_alignment and explicit != "all":
+            raise ValueError(
+                f"use_alignment=True needs explicit='all': the alignment command is rebuilt from the platform "
+                f"velocity estimates, which explicit={explicit!r} does not provide (set use_alignment=False)"
+            )
+        # read by _get_obs_dim/_get_latent_dim during MLPModel.__init__
+        self.explicit = explicit
+        self.num_explicit = len(sel)  # selections are prefixes of x_exp
+        self.use_alignment = bool(use_alignment)
+        self.num_alignment = 3 if use_alignment else 0
+        self.latent_dim = latent_dim
+        self.history_input = bool(history_input)
+        super().__init__(
+            obs, obs_groups, obs_set, output_dim, hidden_dims, activation, obs_normalization, distribution_cfg
+        )
+        self.deploy: bool = False
+        self.encoder = ImplicitEncoder(self.num_implicit, latent_dim, encoder_hidden_dims, activation)
+        est_kw = dict(
+            obs_dim=self.num_obs,
+            history_len=self.history_len,
+            mlp_dim=estimator_mlp_dim,
+            channels=estimator_channels,
+            activation=activation,
+        )
+        self.explicit_estimator: HistoryEstimator | None = (
+            HistoryEstimator(out_dim=self.num_explicit, **est_kw) if self.num_explicit > 0 else None
+        )
+        self.implicit_estimator = HistoryEstimator(out_dim=latent_dim, **est_kw)
+
+    # ----------------------------------------------------------------- dims (MLPModel hooks)
+    def _get_obs_dim(
+        self, obs: TensorDict, obs_groups: dict[str, list[str]], obs_set: str
+    ) -> tuple[list[str], int]:
+        """Check the groups and return the size of the normalized part [o, x_exp(selected), u_aln]."""
+        active = list(obs_groups[obs_set])
+        needed = [GROUP_OBS, GROUP_HISTORY, GROUP_IMPLICIT]
+        needed += [GROUP_EXPLICIT] if self.num_explicit else []
+        needed += [GROUP_ALIGNMENT] if self.use_alignment else []
+        missing = [g for g in needed if g not in active]
+        if missing:
+            raise ValueError(f"obs_groups[{obs_set!r}] lacks {missing} needed by LasmpActor")
+        o, hist = obs[GROUP_OBS], obs[GROUP_HISTORY]
+        if o.dim() != 2 or hist.dim() != 3 or hist.shape[-1] != o.shape[-1]:
+            raise ValueError(
+                f"expected policy (n, D) and history (n, H, D), got {tuple(o.shape)}, {tuple(hist.shape)}"
+            )
+        if self.num_explicit and obs[GROUP_EXPLICIT].shape[-1] != len(X_EXP_NAMES):
+            raise ValueError(
+                f"priv_explicit must have {len(X_EXP_NAMES)} dims, got {obs[GROUP_EXPLICIT].shape[-1]}"
+            )
+        self.num_obs = o.shape[-1]
+        self.history_len = hist.shape[1]
+        self.num_implicit = obs[GROUP_IMPLICIT].shape[-1]
+        return active, self.num_obs + self.num_explicit + self.num_alignment
+
+    def _get_latent_dim(self) -> int:
+        """Backbone input size: normalized [o, x_exp, u_aln] + l_imp (+ flattened history)."""
+        hist = self.history_len * self.num_obs if self.history_input else 0
+        self.backbone_input_dim = self.obs_dim + self.latent_dim + hist
+        return self.backbone_input_dim
+
+    # ----------------------------------------------------------------- inputs
+    def history_norm_params(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mean, scale), each (1, D): the o-part of the model normalizer, for per-step history normalization."""
+        if self.obs_normalization:
+            norm = self.obs_normalizer
+            return norm._mean[:, : self.num_obs], norm._std[:, : self.num_obs] + norm.eps
+        ref = self.mlp[0].weight
+        return ref.new_zeros(1, self.num_obs), ref.new_ones(1, self.num_obs)
+
+    def normalize_history(self, history: torch.Tensor) -> torch.Tensor:
+        """(n, H, D) raw history -> normalized with the o statistics, per time step."""
+        mean, scale = self.history_norm_params()
+        return (history - mean) / scale
+
+    def _privileged_inputs(self, obs: TensorDict) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+        """True (x_exp selected, l_imp = encoder(x_imp), u_aln) in raw units."""
+        x_exp = obs[GROUP_EXPLICIT][:, : self.num_explicit] if self.num_explicit else obs[GROUP_OBS][:, :0]
+        l_imp = self.encoder(obs[GROUP_IMPLICIT])
+        u_aln = obs[GROUP_ALIGNMENT] if self.use_alignment else None
+        return x_exp, l_imp, u_aln
+
+    def _estimated_inputs(
+        self, o: torch.Tensor, history_n: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+        """Estimated (x_exp_hat, l_imp_hat, u_aln_hat) from the normalized history; raw units."""
+        x_hat = self.explicit_estimator(history_n) if self.explicit_estimator is not None else o[:, :0]
+        l_hat = self.implicit_estimator(history_n)
+        u_hat = alignment_from_estimates(x_hat, o[:, GYRO_Z_COL]) if self.use_alignment else None
+        return x_hat, l_hat, u_hat
+
+    def _normalized_part(
+        self, o: torch.Tensor, x_exp: torch.Tensor, u_aln: torch.Tensor | None
+    ) -> torch.Tensor:
+        parts = [o, x_exp] + ([u_aln] if u_aln is not None else [])
+        return torch.cat(parts, dim=-1)
+
+    def get_latent(
+        self, obs: TensorDict, masks: torch.Tensor | None = None, hidden_state=None
+    ) -> torch.Tensor:
+        """Backbone input [norm(o, x_exp, u_aln), l_imp(, norm(o^H) flattened)], per `self.deploy`."""
+        o = obs[GROUP_OBS]
+        history_n = self.normalize_history(obs[GROUP_HISTORY])
+        if self.deploy:
+            x_exp, l_imp, u_aln = self._estimated_inputs(o, history_n)
+        else:
+            x_exp, l_imp, u_aln = self._privileged_inputs(obs)
+        parts = [self.obs_normalizer(self._normalized_part(o, x_exp, u_aln)), l_imp]
+        if self.history_input:
+            parts.append(history_n.flatten(1))
+        return torch.cat(parts, dim=-1)
+
+    def update_normalization(self, obs: TensorDict) -> None:
+        """Update the model normalizer with the true [o, x_exp, u_aln] and the encoder's with x_imp."""
+        if self.obs_normalization:
+            x_exp = (
+                obs[GROUP_EXPLICIT][:, : self.num_explicit] if self.num_explicit else obs[GROUP_OBS][:, :0]
+            )
+            u_aln = obs[GROUP_ALIGNMENT] if self.use_alignment else None
+            self.obs_normalizer.update(self._normalized_part(obs[GROUP_OBS], x_exp, u_aln))
+        self.encoder.update_normalization(obs[GROUP_IMPLICIT])
+
+    # ----------------------------------------------------------------- ROA
+    def estimator_parameters(self) -> list[nn.Parameter]:
+        """Parameters of both history estimators (psi)."""
+        params = list(self.implicit_estimator.parameters())
+        if self.explicit_estimator is not None:
+            params += list(self.explicit_estimator.parameters())
+        return params
+
+    def encoder_parameters(self) -> list[nn.Parameter]:
+        """Parameters of the implicit encoder h_theta."""
+        return list(self.encoder.parameters())
+
+    def roa_losses(self, obs: TensorDict, lam: float) -> dict[str, torch.Tensor]:
+        """ROA losses (SPEC §9); each squared error is summed over dims and averaged over the batch.
+
+        - `exp`     = ||x_exp_hat - x_exp||^2 (raw units; grads only to the explicit estimator; 0 if none)
+        - `imp_est` = ||l_imp_hat - sg[l_imp]||^2 (grads only to the implicit estimator)
+        - `imp_reg` = lam * ||sg[l_imp_hat] - l_imp||^2 (grads only to the encoder)
+        """
+        o = obs[GROUP_OBS]
+        history_n = self.normalize_history(obs[GROUP_HISTORY])
+        if self.explicit_estimator is not None:
+            x_true = obs[GROUP_EXPLICIT][:, : self.num_explicit]
+            exp = (self.explicit_estimator(history_n) - x_true).square().sum(-1).mean()
+        else:
+            exp = o.new_zeros(())
+        l_imp = self.encoder(obs[GROUP_IMPLICIT])
+        l_hat = self.implicit_estimator(history_n)
+        imp_est = (l_hat - l_imp.detach()).square().sum(-1).mean()
+        imp_reg = lam * (l_hat.detach() - l_imp).square().sum(-1).mean()
+        return {"exp": exp, "imp_est": imp_est, "imp_reg": imp_reg}
+
+    @torch.no_grad()
+    def estimation_errors(self, obs: TensorDict) -> dict[str, float]:
+        """Mean |x_exp_hat - x_exp| per named dim (and per u_aln dim), and mean ||l_imp_hat - l_imp||_2 (`l_imp_l2`)."""
+        o = obs[GROUP_OBS]
+        x_hat, l_hat, u_hat = self._estimated_inputs(o, self.normalize_history(obs[GROUP_HISTORY]))
+        out: dict[str, float] = {}
+        if self.num_explicit:
+            err = (x_hat - obs[GROUP_EXPLICIT][:, : self.num_explicit]).abs().mean(0)
+            out.update(
+                {name: float(e) for name, e in zip(X_EXP_NAMES[: self.num_explicit], err, strict=True)}
+            )
+        if u_hat is not None:
+            err = (u_hat - obs[GROUP_ALIGNMENT]).abs().mean(0)
+            out.update({name: float(e) for name, e in zip(U_ALN_NAMES, err, strict=True)})
+        out["l_imp_l2"] = float((l_hat - self.encoder(obs[GROUP_IMPLICIT])).norm(dim=-1).mean())
+        return out
+
+    # ----------------------------------------------------------------- export
+    def as_jit(self) -> nn.Module:
+        """Deployment-mode policy over the proprioceptive window only (TorchScript-scriptable)."""
+        return LasmpDeployPolicy(self)
+
+    def as_onnx(self, verbose: bool) -> nn.Module:
+        """Deployment-mode policy over the proprioceptive window only (ONNX-exportable)."""
+        return LasmpDeployPolicy(self, verbose)

@@ -1,0 +1,79 @@
+"""Build the env, the runner and train: the logic behind `train.py`."""
+
+from __future__ import annotations
+
+import datetime
+import os
+import random
+from pathlib import Path
+
+import numpy as np
+import torch
+from omegaconf import OmegaConf
+
+from lasmp.algo.runner import LasmpRunner, read_checkpoint
+from lasmp.config import ConfigError
+from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, validate_train_cfg
+
+TASKS = ("moving_platform",)
+
+
+def seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed)
+    torch.manual_seed(seed)
+
+
+def make_env(cfg: TrainCfg, device: str = "cpu"):
+    if cfg.task not in TASKS:
+        raise ConfigError(f"task must be one of {list(TASKS)}, got {cfg.task!r}")
+    from lasmp.envs.moving_platform.env import MovingPlatformEnv
+
+    return MovingPlatformEnv(cfg.env, device=device)
+
+
+def to_train_cfg(cfg) -> TrainCfg:
+    """An OmegaConf/Hydra config (or a TrainCfg) as a validated TrainCfg with env.seed = seed."""
+    if not isinstance(cfg, TrainCfg):
+        cfg = OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(TrainCfg), cfg))
+    cfg.env.seed = cfg.seed
+    validate_train_cfg(cfg)
+    return cfg
+
+
+def make_runner(cfg: TrainCfg, log_dir: str | None) -> LasmpRunner:
+    if cfg.device.startswith("cuda") and not torch.cuda.is_available():
+        raise ConfigError(
+            f"device={cfg.device} but torch sees no CUDA device (install a CUDA build of torch)"
+        )
+    if cfg.torch_threads > 0:
+        torch.set_num_threads(cfg.torch_threads)
+    seed_everything(cfg.seed)
+    env = make_env(cfg)
+    return LasmpRunner(env, rsl_rl_cfg(cfg), log_dir=log_dir, device=cfg.device, full_config=to_plain(cfg))
+
+
+def to_plain(cfg: TrainCfg) -> dict:
+    return OmegaConf.to_container(OmegaConf.structured(cfg))
+
+
+def default_log_dir(cfg: TrainCfg) -> str:
+    stamp = datetime.datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
+    return os.path.join("logs", cfg.task, cfg.policy.name, stamp)
+
+
+def train(cfg) -> LasmpRunner:
+    cfg = to_train_cfg(cfg)
+    if cfg.resume:  # fail before building anything if the checkpoint is unusable
+        read_checkpoint(cfg.resume)
+    log_dir = cfg.runner.log_dir or default_log_dir(cfg)
+    Path(log_dir).mkdir(parents=True, exist_ok=True)
+    OmegaConf.save(OmegaConf.structured(cfg), os.path.join(log_dir, "config.yaml"))
+    runner = make_runner(cfg, log_dir)
+    if cfg.resume:
+        runner.load(cfg.resume)
+        print(f"resumed from {cfg.resume} at iteration {runner.current_learning_iteration}", flush=True)
+    print(f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs, {cfg.runner.max_iterations} "
+          f"iterations, logs in {log_dir}", flush=True)  # fmt: skip
+    runner.learn(cfg.runner.max_iterations)
+    return runner

@@ -1,0 +1,149 @@
+"""Training configuration: schemas for the policy, the algorithm and the runner, registered in
+Hydra's ConfigStore as the base of `cfg/config.yaml`, and their translation to rsl_rl's dict.
+
+Hydra type-checks every override against these dataclasses and refuses unknown keys, naming
+them; `validate_train_cfg` then checks value ranges, naming the field.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import OmegaConf
+
+from lasmp.config import ConfigError, MovingPlatformCfg
+
+ACTOR_CLASS = "lasmp.modules.policy:LasmpActor"
+CRITIC_CLASS = "rsl_rl.models:MLPModel"
+ALGORITHM_CLASS = "lasmp.algo.ppo_roa:PPOROA"
+ACTOR_GROUPS = ["policy", "history", "priv_explicit", "priv_implicit", "alignment"]
+
+
+@dataclass
+class PolicyCfg:
+    name: str = "lasmp"  # the ablation's name, for run directories and reports
+    actor_hidden_dims: list[int] = field(default_factory=lambda: [512, 256, 128])  # 4 layers with the output
+    critic_hidden_dims: list[int] = field(default_factory=lambda: [512, 256, 128])
+    activation: str = "elu"
+    latent_dim: int = 16  # size of l_imp (ours)
+    encoder_hidden_dims: list[int] = field(default_factory=lambda: [64])
+    estimator_mlp_dim: int = 32
+    estimator_channels: int = 32
+    use_alignment: bool = True  # the alignment command u_aln is an actor input
+    explicit: str = "all"  # explicit estimator outputs: all | no_platform | none
+    history_input: bool = False  # the raw observation history is an actor input
+    init_noise_std: float = 1.0
+
+
+@dataclass
+class AlgoCfg:
+    learning_rate: float = 1e-3
+    num_learning_epochs: int = 5
+    num_mini_batches: int = 4
+    clip_param: float = 0.2
+    gamma: float = 0.99
+    lam: float = 0.95
+    value_loss_coef: float = 1.0
+    entropy_coef: float = 0.01
+    max_grad_norm: float = 1.0
+    desired_kl: float = 0.01
+    schedule: str = "adaptive"
+    roa_lambda: float = 0.2  # λ of L_imp, SPEC §9
+    estimator_learning_rate: float = 1e-3  # (ours) the estimators' own Adam
+    estimator_epochs: int = 1  # (ours) ROA passes over each rollout
+
+
+@dataclass
+class RunnerCfg:
+    num_steps_per_env: int = 12  # 0.24 s of data per env per iteration, as in the paper
+    max_iterations: int = 1500
+    save_interval: int = 100
+    log_dir: str | None = None  # default: logs/<task>/<policy>/<date_time>
+    check_for_nan: bool = True
+
+
+@dataclass
+class TrainCfg:
+    task: str = "moving_platform"
+    seed: int = 0
+    device: str = "cpu"  # where the learner runs; physics always runs on the CPU
+    torch_threads: int = 0  # CPU threads of torch for the learner; 0 = torch's default (all cores)
+    resume: str | None = None  # a checkpoint file or a run directory (its latest model_<N>.pt)
+    env: MovingPlatformCfg = field(default_factory=MovingPlatformCfg)
+    policy: PolicyCfg = field(default_factory=PolicyCfg)
+    algo: AlgoCfg = field(default_factory=AlgoCfg)
+    runner: RunnerCfg = field(default_factory=RunnerCfg)
+
+
+def register_configs() -> None:
+    ConfigStore.instance().store(name="train_schema", node=TrainCfg)
+
+
+def validate_train_cfg(cfg: TrainCfg) -> None:
+    cfg.env.validate("env")
+    p, a, r = cfg.policy, cfg.algo, cfg.runner
+    if p.explicit not in ("all", "no_platform", "none"):
+        raise ConfigError(f"policy.explicit must be all | no_platform | none, got {p.explicit!r}")
+    if p.use_alignment and p.explicit != "all":
+        raise ConfigError(
+            "policy.use_alignment needs policy.explicit=all (the command is built from platform estimates)"
+        )
+    if p.latent_dim < 1 or p.init_noise_std <= 0:
+        raise ConfigError("policy.latent_dim must be >= 1 and policy.init_noise_std > 0")
+    for name in ("learning_rate", "clip_param", "estimator_learning_rate", "max_grad_norm"):
+        if getattr(a, name) <= 0:
+            raise ConfigError(f"algo.{name} must be > 0, got {getattr(a, name)}")
+    if not 0 < a.gamma <= 1 or not 0 <= a.lam <= 1:
+        raise ConfigError(f"algo.gamma must be in (0, 1] and algo.lam in [0, 1], got {a.gamma}, {a.lam}")
+    if a.roa_lambda < 0:
+        raise ConfigError(f"algo.roa_lambda must be >= 0, got {a.roa_lambda}")
+    for name in ("num_learning_epochs", "num_mini_batches", "estimator_epochs"):
+        if getattr(a, name) < 1:
+            raise ConfigError(f"algo.{name} must be >= 1, got {getattr(a, name)}")
+    if r.num_steps_per_env < 1 or r.max_iterations < 0 or r.save_interval < 1:
+        raise ConfigError(
+            "runner.num_steps_per_env and runner.save_interval must be >= 1, max_iterations >= 0"
+        )
+    if cfg.env.num_envs * r.num_steps_per_env < a.num_mini_batches:
+        raise ConfigError(
+            f"env.num_envs * runner.num_steps_per_env ({cfg.env.num_envs * r.num_steps_per_env}) must be at least "
+            f"algo.num_mini_batches ({a.num_mini_batches})"
+        )
+    if cfg.device != "cpu" and not cfg.device.startswith("cuda"):
+        raise ConfigError(f"device must be cpu or cuda[:N], got {cfg.device!r}")
+
+
+def rsl_rl_cfg(cfg: TrainCfg) -> dict[str, Any]:
+    """The dict rsl_rl's OnPolicyRunner takes."""
+    p, a, r = cfg.policy, cfg.algo, cfg.runner
+    gaussian = {"class_name": "GaussianDistribution", "init_std": p.init_noise_std, "std_type": "scalar"}
+    return {
+        "num_steps_per_env": r.num_steps_per_env,
+        "save_interval": r.save_interval,
+        "check_for_nan": r.check_for_nan,
+        "obs_groups": {"actor": list(ACTOR_GROUPS), "critic": ["critic"]},
+        "actor": {
+            "class_name": ACTOR_CLASS,
+            "hidden_dims": list(p.actor_hidden_dims),
+            "activation": p.activation,
+            "obs_normalization": True,
+            "distribution_cfg": gaussian,
+            "latent_dim": p.latent_dim,
+            "encoder_hidden_dims": list(p.encoder_hidden_dims),
+            "estimator_mlp_dim": p.estimator_mlp_dim,
+            "estimator_channels": p.estimator_channels,
+            "use_alignment": p.use_alignment,
+            "explicit": p.explicit,
+            "history_input": p.history_input,
+        },
+        "critic": {
+            "class_name": CRITIC_CLASS,
+            "hidden_dims": list(p.critic_hidden_dims),
+            "activation": p.activation,
+            "obs_normalization": True,
+        },
+        "algorithm": {"class_name": ALGORITHM_CLASS, **OmegaConf.to_container(OmegaConf.structured(a))},
+        "multi_gpu": None,
+    }

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import datetime
 import os
-import random
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +18,6 @@ TASKS = ("moving_platform",)
 
 
 def seed_everything(seed: int) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
     torch.manual_seed(seed)
 
 

@@ -218,9 +218,6 @@ class MovingPlatformEnv(BaseEnv):
             )
             if self.curriculum is not None:
                 self.curriculum.update(self.traj_level[done], success)
-        if self.curriculum is not None:
-            log["Curriculum/level"] = float(self.curriculum.level)
-            log["Curriculum/success_rate"] = self.curriculum.success_rate
 
         n = len(ids)
         dr = self.cfg.domain_rand

@@ -1,0 +1,220 @@
+"""The learner: PPO + ROA updates, time-out bootstrapping, checkpoints, resume, determinism,
+Hydra composition of every ablation, and the real train.py CLI at a tiny size."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from lasmp.algo.runner import CheckpointError, latest_checkpoint, read_checkpoint
+from lasmp.config import ConfigError
+from lasmp.train import make_runner, to_train_cfg, train
+from lasmp.train_cfg import register_configs
+
+ROOT = Path(__file__).resolve().parents[1]
+register_configs()
+
+
+def tiny(tmp_path, **over):
+    cfg = {
+        "env": {"num_envs": 4},
+        "runner": {"max_iterations": 2, "log_dir": str(tmp_path), "save_interval": 1},
+        "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
+        "algo": {"num_mini_batches": 2, "num_learning_epochs": 1},
+        "torch_threads": 1,
+    }
+    cfg = OmegaConf.merge(OmegaConf.create(cfg), OmegaConf.create(over))
+    return to_train_cfg(cfg)
+
+
+def params(module):
+    return {k: v.detach().clone() for k, v in module.state_dict().items()}
+
+
+def changed(before, module, prefix):
+    after = module.state_dict()
+    return any(not torch.equal(before[k], after[k]) for k in before if k.startswith(prefix))
+
+
+def rollout(runner):
+    obs = runner.env.get_observations()
+    with torch.inference_mode():
+        for _ in range(runner.cfg["num_steps_per_env"]):
+            actions = runner.alg.act(obs)
+            obs, rew, dones, extras = runner.env.step(actions)
+            runner.alg.process_env_step(obs, rew, dones, extras)
+        runner.alg.compute_returns(obs)
+
+
+def test_ppo_update_leaves_estimators_alone_and_roa_moves_them(tmp_path):
+    runner = make_runner(tiny(tmp_path), None)
+    actor = runner.alg.get_policy()
+    rollout(runner)
+    before = params(actor)
+    runner.alg.update_roa = lambda: {}  # PPO's own update only
+    runner.alg.update()
+    assert not changed(before, actor, "explicit_estimator") and not changed(before, actor, "implicit_estimator")
+    assert changed(before, actor, "mlp") and changed(before, actor, "encoder")
+
+    runner = make_runner(tiny(tmp_path), None)
+    actor = runner.alg.get_policy()
+    rollout(runner)
+    runner.alg.storage.clear()  # as PPO.update leaves it: the data stay, the cursor rewinds
+    before = params(actor)
+    losses = type(runner.alg).update_roa(runner.alg)
+    assert {"roa_exp", "roa_imp_est", "roa_imp_reg"} <= set(losses)
+    assert "Estimator/v_plf_x" in losses and "Estimator/l_imp_l2" in losses
+    assert changed(before, actor, "explicit_estimator") and changed(before, actor, "implicit_estimator")
+    assert changed(before, actor, "encoder")  # the λ term
+    assert not changed(before, actor, "mlp")  # the backbone is PPO's alone
+
+
+def test_time_outs_are_bootstrapped_and_terminations_are_not(tmp_path):
+    runner = make_runner(tiny(tmp_path), None)
+    alg = runner.alg
+    obs = runner.env.get_observations()
+    with torch.inference_mode():
+        alg.act(obs)
+        values = alg.transition.values.clone().squeeze(-1)
+        rewards = torch.zeros(4)
+        dones = torch.tensor([1, 1, 0, 0])
+        extras = {"time_outs": torch.tensor([1, 0, 0, 0])}
+        alg.process_env_step(obs, rewards, dones, extras)
+    stored = alg.storage.rewards[0].squeeze(-1)
+    assert torch.allclose(stored[0], alg.gamma * values[0])  # truncation: bootstrapped with V(s)
+    assert stored[1] == 0.0 and stored[2] == 0.0  # termination and running env: reward only
+    assert values[0].abs() > 0  # otherwise the check above proves nothing
+
+
+def test_checkpoint_round_trip_and_exact_resume(tmp_path):
+    cfg = tiny(tmp_path / "a")
+    runner = train(cfg)
+    ckpt = latest_checkpoint(tmp_path / "a")
+    assert ckpt.name == "model_1.pt"
+    data = read_checkpoint(ckpt)
+    assert data["iter"] == 1 and data["num_actions"] == 12
+    assert data["obs_layout"]["history"] == [20, 44]
+    assert data["config"]["env"]["num_envs"] == 4
+    assert "estimator_optimizer_state_dict" in data and data["env_state"]["curriculum"]["level"] == 5
+
+    runner.env.curriculum._level = 7  # a state only the checkpoint can bring back
+    runner.alg.learning_rate = 0.000123
+    for group in runner.alg.optimizer.param_groups:
+        group["lr"] = 0.000123
+    runner.save(str(tmp_path / "a" / "model_5.pt"))
+
+    resumed = make_runner(tiny(tmp_path / "b"), None)
+    resumed.load(str(tmp_path / "a"))  # a run directory: its latest checkpoint, model_5
+    assert resumed.current_learning_iteration == runner.current_learning_iteration + 1
+    assert resumed.env.curriculum.level == 7
+    assert resumed.alg.learning_rate == pytest.approx(0.000123)
+    for (k, v), (k2, v2) in zip(runner.alg.get_policy().state_dict().items(),
+                                resumed.alg.get_policy().state_dict().items(), strict=True):  # fmt: skip
+        assert k == k2 and torch.equal(v, v2), k
+
+
+def test_latest_checkpoint_is_numeric(tmp_path):
+    for n in (9, 10, 2):
+        (tmp_path / f"model_{n}.pt").write_bytes(b"x")
+    (tmp_path / "model_best.pt").write_bytes(b"x")
+    assert latest_checkpoint(tmp_path).name == "model_10.pt"
+    with pytest.raises(CheckpointError, match="no checkpoint"):
+        latest_checkpoint(tmp_path / "empty_dir_that_does_not_exist")
+
+
+def test_bad_checkpoints_fail_with_a_message_that_says_what_is_wrong(tmp_path):
+    train(tiny(tmp_path / "a"))
+    good = latest_checkpoint(tmp_path / "a")
+    with pytest.raises(CheckpointError, match="does not exist"):
+        read_checkpoint(tmp_path / "missing.pt")
+    truncated = tmp_path / "truncated.pt"
+    truncated.write_bytes(good.read_bytes()[:1000])
+    with pytest.raises(CheckpointError, match="unreadable"):
+        read_checkpoint(truncated)
+    other = make_runner(tiny(tmp_path / "b", env={"observations": {"history_length": 15}}), None)
+    with pytest.raises(CheckpointError, match=r"'history'.*\[20, 44\].*\[15, 44\]"):
+        other.load(str(good))
+
+
+def test_two_cpu_runs_with_the_same_seed_give_identical_parameters(tmp_path):
+    def run(name, seed):
+        cfg = tiny(tmp_path / name, seed=seed, runner={"max_iterations": 3})
+        return train(cfg).alg.get_policy().state_dict()
+
+    a, b, c = run("a", 1), run("b", 1), run("c", 2)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert not all(torch.equal(a[k], c[k]) for k in a)
+
+
+@pytest.mark.parametrize(
+    "group, input_dim",
+    [
+        ("lasmp", 76),
+        ("no_alignment_command", 73),
+        ("no_platform_velocity_estimates", 67),
+        ("no_explicit_estimator", 60),
+        ("no_explicit_estimator_history", 60 + 20 * 44),
+    ],
+)
+def test_every_policy_group_composes_with_its_actor_input_size(tmp_path, group, input_dim):
+    with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
+        cfg = compose("config", overrides=[f"policy={group}", "env.num_envs=2", "torch_threads=1"])
+    runner = make_runner(to_train_cfg(cfg), None)
+    assert runner.alg.get_policy().backbone_input_dim == input_dim
+    assert cfg.policy.name == group
+
+
+def test_presets_and_overrides_compose():
+    with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
+        cpu = compose("config")
+        paper = compose("config", overrides=["preset=paper"])
+        custom = compose("config", overrides=["env.num_envs=8", "runner.max_iterations=3", "seed=5",
+                                               "runner.log_dir=/tmp/x"])  # fmt: skip
+    assert (cpu.env.num_envs, cpu.runner.max_iterations, cpu.device) == (1024, 1000, "cpu")
+    assert (paper.env.num_envs, paper.runner.max_iterations, paper.device) == (8192, 4000, "cuda")
+    assert (custom.env.num_envs, custom.runner.max_iterations, custom.seed) == (8, 3, 5)
+    assert to_train_cfg(custom).env.seed == 5
+
+
+def test_invalid_training_config_names_the_field():
+    with pytest.raises(ConfigError, match="algo.roa_lambda"):
+        to_train_cfg(OmegaConf.create({"algo": {"roa_lambda": -1.0}}))
+    with pytest.raises(ConfigError, match="policy.use_alignment"):
+        to_train_cfg(OmegaConf.create({"policy": {"explicit": "none"}}))
+    with pytest.raises(Exception, match="num_env"):  # a typo: OmegaConf names the unknown key
+        to_train_cfg(OmegaConf.create({"env": {"num_env": 8}}))
+
+
+def run_cli(*args, cwd):
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.run([sys.executable, str(ROOT / "train.py"), *args], capture_output=True, text=True,
+                          cwd=cwd, env=env, timeout=600)  # fmt: skip
+
+
+def test_train_cli_end_to_end_then_resume(tmp_path):
+    common = ["env.num_envs=8", "torch_threads=1", "policy.actor_hidden_dims=[32,32,32]"]
+    out = run_cli(*common, "runner.max_iterations=2", f"runner.log_dir={tmp_path / 'run'}", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = [line for line in out.stdout.splitlines() if line.startswith("it ")]
+    assert len(lines) == 2 and "steps/s" in lines[0] and "ETA" in lines[0]
+    run = tmp_path / "run"
+    assert (run / "config.yaml").exists() and (run / "model_1.pt").exists()
+    assert any(p.name.startswith("events.out.tfevents") for p in run.iterdir())
+    assert OmegaConf.load(run / "config.yaml").env.num_envs == 8
+
+    out = run_cli(*common, "runner.max_iterations=1", f"resume={run}", f"runner.log_dir={tmp_path / 'run2'}",
+                  cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "at iteration 2" in out.stdout
+    assert [line.split("|")[0].strip() for line in out.stdout.splitlines() if line.startswith("it ")] == ["it 3/3"]
+    assert read_checkpoint(tmp_path / "run2")["iter"] == 2
+
+    out = run_cli(*common, f"resume={tmp_path / 'nope.pt'}", cwd=tmp_path)
+    assert out.returncode != 0 and "nope.pt does not exist" in out.stderr

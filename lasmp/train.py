@@ -6,7 +6,6 @@ import datetime
 import os
 from pathlib import Path
 
-import numpy as np
 import torch
 from omegaconf import OmegaConf
 

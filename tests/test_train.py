@@ -60,7 +60,9 @@ def test_ppo_update_leaves_estimators_alone_and_roa_moves_them(tmp_path):
     before = params(actor)
     runner.alg.update_roa = lambda: {}  # PPO's own update only
     runner.alg.update()
-    assert not changed(before, actor, "explicit_estimator") and not changed(before, actor, "implicit_estimator")
+    assert not changed(before, actor, "explicit_estimator") and not changed(
+        before, actor, "implicit_estimator"
+    )
     assert changed(before, actor, "mlp") and changed(before, actor, "encoder")
 
     runner = make_runner(tiny(tmp_path), None)
@@ -213,7 +215,9 @@ def test_train_cli_end_to_end_then_resume(tmp_path):
                   cwd=tmp_path)  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     assert "at iteration 2" in out.stdout
-    assert [line.split("|")[0].strip() for line in out.stdout.splitlines() if line.startswith("it ")] == ["it 3/3"]
+    assert [line.split("|")[0].strip() for line in out.stdout.splitlines() if line.startswith("it ")] == [
+        "it 3/3"
+    ]
     assert read_checkpoint(tmp_path / "run2")["iter"] == 2
 
     out = run_cli(*common, f"resume={tmp_path / 'nope.pt'}", cwd=tmp_path)

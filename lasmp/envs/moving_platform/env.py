@@ -188,6 +188,9 @@ class MovingPlatformEnv(BaseEnv):
             "Termination/body_contact": float(r.body_collision.sum()),
             "Termination/fell": float(fell.sum()),
         }
+        if self.curriculum is not None:  # every step, so each iteration logs the level
+            log["Curriculum/level"] = float(self.curriculum.level)
+            log["Curriculum/success_rate"] = self.curriculum.success_rate
         return reward, collision, log
 
     # -- resets --------------------------------------------------------------------------------

@@ -1,0 +1,370 @@
+"""Play a trained LAS-MP policy: the logic behind `play.py`.
+
+    python play.py --checkpoint PATH [--num-envs 1] [--steps 500] [--seed 0] [--video out.mp4]
+                   [--snapshots out.png] [--viewer] [--export onnx|jit --out DIR] [--trajectories FILE]
+
+The env and the policy are rebuilt from the checkpoint's own config (never today's defaults);
+only the number of envs, the seed and (optionally) the trajectory file are overridden. The policy
+runs in deployment mode: its inputs are o_t and the history o^H only (the estimators replace the
+privileged groups), with deterministic (mean) actions.
+
+Rendering is offscreen with `mujoco.Renderer`, which needs an OpenGL backend without a display:
+`MUJOCO_GL=egl` (a GPU driver, or Mesa's EGL; the default set here) or, as a fallback,
+`MUJOCO_GL=osmesa` with libosmesa6 installed (slow, software). `--video` also needs imageio and
+imageio-ffmpeg (`pip install -e .[video]`). `--viewer` opens MuJoCo's interactive viewer and
+needs a display (DISPLAY or WAYLAND_DISPLAY).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from omegaconf import OmegaConf
+
+from lasmp.algo.runner import CheckpointError, LasmpRunner, read_checkpoint
+from lasmp.train import make_env, seed_everything, to_train_cfg
+from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
+
+VIDEO_SIZE = (640, 480)  # width, height (px)
+SNAPSHOT_COUNT = 6
+PRIVILEGED_GROUPS = ("priv_explicit", "priv_implicit", "alignment", "critic")
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading
+# ---------------------------------------------------------------------------------------------
+def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | None) -> TrainCfg:
+    """The TrainCfg saved in a checkpoint, with only num_envs, seed (and trajectory file) changed."""
+    if not data.get("config"):
+        raise CheckpointError(f"checkpoint {data['path']} carries no config to rebuild the policy from")
+    try:
+        conf = OmegaConf.create(data["config"])
+        conf.env.num_envs = int(num_envs)
+        conf.seed = int(seed)
+        conf.device = "cpu"
+        conf.resume = None
+        conf.runner.log_dir = None
+        if trajectories is not None:
+            conf.env.trajectory.file = str(trajectories)
+        return to_train_cfg(conf)
+    except Exception as err:  # unknown/removed keys, out-of-range values: the code moved on
+        raise CheckpointError(
+            f"checkpoint {data['path']} has a config this code cannot rebuild: {err}"
+        ) from err
+
+
+def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None):
+    """(env, policy, cfg): the checkpoint's env and its actor in deployment mode (eval, estimators only).
+
+    `path` is a checkpoint file or a run directory (its latest model_<N>.pt). Raises CheckpointError
+    for a missing, unreadable or mismatched checkpoint. The env is reset after loading, so its first
+    episodes already use the checkpoint's curriculum state.
+    """
+    data = read_checkpoint(path)
+    cfg = checkpoint_cfg(data, num_envs, seed, trajectories)
+    seed_everything(cfg.seed)
+    env = make_env(cfg)
+    runner = LasmpRunner(env, rsl_rl_cfg(cfg), log_dir=None, device="cpu")
+    try:
+        runner.load(data["path"])
+    except CheckpointError:
+        raise
+    except RuntimeError as err:  # state-dict shape mismatch: the config does not fit the weights
+        raise CheckpointError(f"checkpoint {data['path']} does not fit its own config: {err}") from err
+    policy = runner.alg.get_policy()
+    policy.deploy = True
+    policy.eval()
+    env.reset()
+    return env, policy, cfg
+
+
+def obs_window(obs) -> torch.Tensor:
+    """(n, H+1, D) = [o_t, o_{t-1}, ..., o_{t-H}]: the deployable policy's only input."""
+    return torch.cat([obs["policy"].unsqueeze(1), obs["history"]], dim=1)
+
+
+# ---------------------------------------------------------------------------------------------
+# Rendering (env 0, offscreen)
+# ---------------------------------------------------------------------------------------------
+class EnvRenderer:
+    """Offscreen frames of env 0: a camera following the platform, or a fixed world camera."""
+
+    def __init__(self, env, follow: bool, width: int = VIDEO_SIZE[0], height: int = VIDEO_SIZE[1]):
+        os.environ.setdefault("MUJOCO_GL", "egl")
+        import mujoco
+
+        self._mj = mujoco
+        self.batch = env.sim.batch
+        self.model = self.batch.get_model(0)
+        self.data = mujoco.MjData(self.model)
+        self.renderer = mujoco.Renderer(self.model, height=height, width=width)
+        self.follow = follow
+        self.platform_body = self.model.body("platform").id
+        cam = mujoco.MjvCamera()
+        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        if follow:  # behind-right of the platform, looking down at it, ~4 m away
+            cam.distance, cam.elevation, cam.azimuth = 4.0, -25.0, 135.0
+        else:  # fixed: from about (7, -7, 5.5) m at (0, 0, 2) m, so the 0..5 m platform path stays in view
+            eye, target = np.array([7.0, -7.0, 5.5]), np.array([0.0, 0.0, 2.0])
+            d = target - eye
+            cam.lookat[:] = target
+            cam.distance = float(np.linalg.norm(d))
+            cam.elevation = math.degrees(math.asin(d[2] / cam.distance))
+            cam.azimuth = math.degrees(math.atan2(d[1], d[0]))
+        self.camera = cam
+
+    def frame(self) -> np.ndarray:
+        """(height, width, 3) uint8 image of env 0's current state."""
+        self.batch.get_data(0, self.data)
+        self._mj.mj_forward(self.model, self.data)
+        if self.follow:
+            self.camera.lookat[:] = self.data.xpos[self.platform_body]
+        self.renderer.update_scene(self.data, self.camera)
+        return self.renderer.render()
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+class VideoWriter:
+    """mp4 at one frame per policy step, streamed to disk (imageio + imageio-ffmpeg)."""
+
+    def __init__(self, path: str, fps: float):
+        try:
+            import imageio.v2 as imageio
+            import imageio_ffmpeg  # noqa: F401  (the mp4 plugin's backend)
+        except ImportError as err:
+            raise RuntimeError(
+                f"--video needs imageio and imageio-ffmpeg ({err}); install them with: pip install -e .[video]"
+            ) from err
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self.writer = imageio.get_writer(path, fps=fps, codec="libx264", macro_block_size=16)
+        self.frames = 0
+
+    def add(self, frame: np.ndarray) -> None:
+        self.writer.append_data(frame)
+        self.frames += 1
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+def save_snapshots(frames: list[np.ndarray], path: str) -> None:
+    """The frames side by side, left to right in time, as one PNG."""
+    from matplotlib import image
+
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    image.imsave(path, np.concatenate(frames, axis=1))
+
+
+def snapshot_steps(steps: int, count: int = SNAPSHOT_COUNT) -> set[int]:
+    """Steps (after which a frame is taken) evenly spaced over the run, first and last included."""
+    return {int(s) for s in np.linspace(0, max(steps - 1, 0), count).round()}
+
+
+# ---------------------------------------------------------------------------------------------
+# Interactive viewer
+# ---------------------------------------------------------------------------------------------
+class Viewer:
+    """MuJoCo's passive viewer on env 0, synced once per policy step at real time."""
+
+    def __init__(self, env):
+        import mujoco
+        import mujoco.viewer
+
+        self._mj = mujoco
+        self.batch = env.sim.batch
+        self.dt_s = env.dt_s
+        self.model = self.batch.get_model(0)
+        self.data = mujoco.MjData(self.model)
+        self.batch.get_data(0, self.data)
+        mujoco.mj_forward(self.model, self.data)
+        self.handle = mujoco.viewer.launch_passive(self.model, self.data)
+        self._last = time.perf_counter()
+
+    def sync(self) -> bool:
+        """Show the current state; False once the window was closed."""
+        if not self.handle.is_running():
+            return False
+        with self.handle.lock():
+            self.batch.get_data(0, self.data)
+            self._mj.mj_forward(self.model, self.data)
+        self.handle.sync()
+        wait = self.dt_s - (time.perf_counter() - self._last)
+        if wait > 0:
+            time.sleep(wait)
+        self._last = time.perf_counter()
+        return True
+
+    def close(self) -> None:
+        self.handle.close()
+
+
+def has_display() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+# ---------------------------------------------------------------------------------------------
+# Export
+# ---------------------------------------------------------------------------------------------
+def _atomic_write(path: Path, write) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def export_policy(policy, fmt: str, out_dir: str | Path) -> Path:
+    """Write the deployable policy (input obs_window (n, H+1, D), output actions) as ONNX or TorchScript."""
+    out_dir = Path(out_dir)
+    if fmt == "onnx":
+        module = policy.as_onnx(False).eval()
+        path = out_dir / "policy.onnx"
+
+        def write(tmp: str) -> None:
+            torch.onnx.export(
+                module,
+                module.get_dummy_inputs(),
+                tmp,
+                export_params=True,
+                opset_version=18,
+                input_names=module.input_names,
+                output_names=module.output_names,
+                dynamo=False,
+            )
+
+    elif fmt == "jit":
+        module = torch.jit.script(policy.as_jit().eval())
+        path = out_dir / "policy.pt"
+
+        def write(tmp: str) -> None:
+            module.save(tmp)
+
+    else:
+        raise ValueError(f"export format must be onnx or jit, got {fmt!r}")
+    _atomic_write(path, write)
+    return path
+
+
+# ---------------------------------------------------------------------------------------------
+# Rollout
+# ---------------------------------------------------------------------------------------------
+def rollout(env, policy, steps: int, video=None, snapshots=None, viewer=None) -> dict:
+    """Run `steps` deterministic policy steps; return the summary counts.
+
+    video: (EnvRenderer, VideoWriter) for a frame per step; snapshots: (EnvRenderer, frame list)
+    for SNAPSHOT_COUNT frames; viewer: a Viewer to sync each step (closing it ends the run).
+    """
+    episodes = collisions = 0
+    reward_sum = 0.0
+    done_steps = 0
+    shots = snapshot_steps(steps) if snapshots else set()
+    obs = env.get_observations()
+    with torch.inference_mode():
+        for step in range(steps):
+            obs, reward, dones, extras = env.step(policy(obs))
+            done_steps += 1
+            episodes += int(dones.sum())
+            collisions += int((dones & ~extras["time_outs"]).sum())
+            reward_sum += float(reward.sum())
+            if video:
+                video[1].add(video[0].frame())
+            if step in shots:
+                snapshots[1].append(snapshots[0].frame())
+            if viewer and not viewer.sync():
+                break
+    return {
+        "steps": done_steps,
+        "episodes": episodes,
+        "collisions": collisions,
+        "mean_reward": reward_sum / max(done_steps * env.num_envs, 1),
+    }
+
+
+def summary_line(s: dict, num_envs: int) -> str:
+    return (
+        f"played {s['steps']} steps x {num_envs} envs: {s['episodes']} episodes ended, "
+        f"{s['collisions']} collisions, mean reward per step {s['mean_reward']:.4f}"
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# CLI
+# ---------------------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="play.py", description="Play (and render or export) a LAS-MP policy.")
+    p.add_argument("--checkpoint", required=True, help="a checkpoint file or a run directory (its latest)")
+    p.add_argument("--num-envs", type=int, default=1)
+    p.add_argument("--steps", type=int, default=500, help="policy steps (50 per second)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--video", help="write an mp4 of env 0 (camera following the platform)")
+    p.add_argument("--snapshots", help=f"write a PNG strip of {SNAPSHOT_COUNT} frames of env 0 (fixed camera)")
+    p.add_argument("--viewer", action="store_true", help="show env 0 in MuJoCo's viewer (needs a display)")
+    p.add_argument("--export", choices=("onnx", "jit"), help="write the deployable policy to --out")
+    p.add_argument("--out", help="directory for --export")
+    p.add_argument("--trajectories", help="a trajectory file (.npz) replayed instead of sampled trajectories")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.export and not args.out:
+        parser.error("--export needs --out DIR")
+    if args.num_envs < 1 or args.steps < 0:
+        parser.error("--num-envs must be >= 1 and --steps >= 0")
+    if args.viewer and not has_display():
+        print("--viewer needs a display (DISPLAY or WAYLAND_DISPLAY is unset); use --video or --snapshots "
+              "to render offscreen", file=sys.stderr)  # fmt: skip
+        return 2
+    try:
+        env, policy, _ = load_deploy_policy(args.checkpoint, args.num_envs, args.seed, args.trajectories)
+    except CheckpointError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+
+    if args.export:
+        print(f"exported {args.export} policy to {export_policy(policy, args.export, args.out)}", flush=True)
+
+    closers = []
+    video = snapshots = viewer = None
+    try:
+        if args.video:
+            writer = VideoWriter(args.video, fps=1.0 / env.dt_s)
+            closers.append(writer)
+            renderer = EnvRenderer(env, follow=True)
+            closers.append(renderer)
+            video = (renderer, writer)
+        if args.snapshots:
+            renderer = EnvRenderer(env, follow=False)
+            closers.append(renderer)
+            snapshots = (renderer, [])
+        if args.viewer:
+            viewer = Viewer(env)
+            closers.append(viewer)
+        stats = rollout(env, policy, args.steps, video, snapshots, viewer)
+    finally:
+        for c in reversed(closers):
+            c.close()
+    print(summary_line(stats, env.num_envs), flush=True)
+    if video:
+        print(f"wrote {video[1].frames} frames to {args.video}", flush=True)
+    if snapshots and snapshots[1]:
+        save_snapshots(snapshots[1], args.snapshots)
+        print(f"wrote {len(snapshots[1])} snapshots to {args.snapshots}", flush=True)
+    return 0

@@ -1,0 +1,11 @@
+"""Play a trained LAS-MP policy: `python play.py --checkpoint PATH [--video out.mp4] [--export onnx --out DIR]`.
+
+`python play.py --help` lists the options; the logic lives in lasmp/play.py.
+"""
+
+import sys
+
+if __name__ == "__main__":
+    from lasmp.play import main
+
+    sys.exit(main(sys.argv[1:]))

@@ -18,6 +18,7 @@ needs a display (DISPLAY or WAYLAND_DISPLAY).
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import os
 import sys
@@ -94,11 +95,27 @@ def obs_window(obs) -> torch.Tensor:
 # ---------------------------------------------------------------------------------------------
 # Rendering (env 0, offscreen)
 # ---------------------------------------------------------------------------------------------
+def select_gl_backend() -> None:
+    """Headless OpenGL for `mujoco.Renderer`: MUJOCO_GL (default egl), even if mujoco came in first.
+
+    mujoco picks its GL backend when it is imported; the env imports it long before anything is
+    rendered, usually with MUJOCO_GL unset (= GLFW, which needs a display). Switch the choice to
+    the requested headless backend then.
+    """
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    want = os.environ["MUJOCO_GL"].lower().strip()
+    from mujoco.rendering.classic import gl_context
+
+    if want in ("egl", "osmesa") and getattr(gl_context, "_MUJOCO_GL", want) != want:
+        gl_context.GLContext = importlib.import_module(f"mujoco.{want}").GLContext
+        gl_context._MUJOCO_GL = want
+
+
 class EnvRenderer:
     """Offscreen frames of env 0: a camera following the platform, or a fixed world camera."""
 
     def __init__(self, env, follow: bool, width: int = VIDEO_SIZE[0], height: int = VIDEO_SIZE[1]):
-        os.environ.setdefault("MUJOCO_GL", "egl")
+        select_gl_backend()
         import mujoco
 
         self._mj = mujoco

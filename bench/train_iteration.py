@@ -1,0 +1,86 @@
+"""Where one training iteration's time goes, for the default config (cfg/, preset=cpu).
+
+Runs rsl_rl's own `learn()` for a few iterations and splits each one into physics
+(`Batch.step`), policy inference (`alg.act`: actor + critic forward), the rest of the env step
+(observations, rewards, resets), the PPO update and the ROA (estimator) update. Prints one JSON
+object with the seconds per iteration of each part and the end-to-end policy steps per second.
+
+    python bench/train_iteration.py --json [--num-envs 1024] [--iterations 3] [override ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from hydra import compose, initialize_config_dir
+
+from lasmp.train import make_runner, to_train_cfg
+from lasmp.train_cfg import register_configs
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def timed(obj, name: str, totals: dict, key: str) -> None:
+    """Wrap obj.name so that its wall time accumulates in totals[key]."""
+    fn = getattr(obj, name)
+
+    def wrapper(*args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            totals[key] += time.perf_counter() - start
+
+    setattr(obj, name, wrapper)
+
+
+def main(argv=None) -> dict:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--num-envs", type=int, default=None, help="default: the config's (1024)")
+    p.add_argument("--iterations", type=int, default=3)
+    p.add_argument("--json", action="store_true")
+    p.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. policy=no_alignment_command")
+    args = p.parse_args(argv)
+    register_configs()
+    overrides = list(args.overrides) + ([f"env.num_envs={args.num_envs}"] if args.num_envs else [])
+    with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
+        cfg = to_train_cfg(compose("config", overrides=overrides))
+    runner = make_runner(cfg, log_dir=None)
+    totals = dict.fromkeys(("physics", "inference", "env_step", "update_ppo_and_roa", "update_roa"), 0.0)
+    timed(runner.env.sim, "step", totals, "physics")
+    timed(runner.alg, "act", totals, "inference")
+    timed(runner.env, "step", totals, "env_step")
+    timed(runner.alg, "update", totals, "update_ppo_and_roa")
+    timed(runner.alg, "update_roa", totals, "update_roa")
+    runner.learn(1)  # warm-up: allocations, first-touch of buffers
+    for key in totals:
+        totals[key] = 0.0
+    start = time.perf_counter()
+    runner.learn(args.iterations)
+    wall = time.perf_counter() - start
+    n = args.iterations
+    steps = n * cfg.env.num_envs * cfg.runner.num_steps_per_env
+    result = {
+        "num_envs": cfg.env.num_envs,
+        "iterations": n,
+        "s_per_iteration": round(wall / n, 3),
+        "physics_s": round(totals["physics"] / n, 3),
+        "policy_inference_s": round(totals["inference"] / n, 3),
+        "env_other_s": round((totals["env_step"] - totals["physics"]) / n, 3),
+        "update_ppo_s": round((totals["update_ppo_and_roa"] - totals["update_roa"]) / n, 3),
+        "update_roa_s": round(totals["update_roa"] / n, 3),
+        "policy_steps_per_s": round(steps / wall, 1),
+    }
+    if args.json:
+        print(json.dumps(result))
+    else:
+        for k, v in result.items():
+            print(f"{k:>20}: {v}")
+    return result
+
+
+if __name__ == "__main__":
+    main()

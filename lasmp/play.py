@@ -18,7 +18,9 @@ needs a display (DISPLAY or WAYLAND_DISPLAY).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import io
 import math
 import os
 import sys
@@ -31,12 +33,17 @@ import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo.runner import CheckpointError, LasmpRunner, read_checkpoint
+from lasmp.config import ConfigError
+from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.train import make_env, seed_everything, to_train_cfg
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
 
 VIDEO_SIZE = (640, 480)  # width, height (px)
 SNAPSHOT_COUNT = 6
-PRIVILEGED_GROUPS = ("priv_explicit", "priv_implicit", "alignment", "critic")
+
+
+class PlayError(RuntimeError):
+    """A user-facing problem (a missing optional package, ...); the message says what to do."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -73,7 +80,8 @@ def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str
     cfg = checkpoint_cfg(data, num_envs, seed, trajectories)
     seed_everything(cfg.seed)
     env = make_env(cfg)
-    runner = LasmpRunner(env, rsl_rl_cfg(cfg), log_dir=None, device="cpu")
+    with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl prints the networks
+        runner = LasmpRunner(env, rsl_rl_cfg(cfg), log_dir=None, device="cpu")
     try:
         runner.load(data["path"])
     except CheckpointError:
@@ -159,7 +167,7 @@ class VideoWriter:
             import imageio.v2 as imageio
             import imageio_ffmpeg  # noqa: F401  (the mp4 plugin's backend)
         except ImportError as err:
-            raise RuntimeError(
+            raise PlayError(
                 f"--video needs imageio and imageio-ffmpeg ({err}); install them with: pip install -e .[video]"
             ) from err
         Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -262,7 +270,8 @@ def export_policy(policy, fmt: str, out_dir: str | Path) -> Path:
                 opset_version=18,
                 input_names=module.input_names,
                 output_names=module.output_names,
-                dynamo=False,
+                external_data=False,  # one self-contained file (the temp name must not leak into it)
+                verbose=False,
             )
 
     elif fmt == "jit":
@@ -330,7 +339,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, default=500, help="policy steps (50 per second)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--video", help="write an mp4 of env 0 (camera following the platform)")
-    p.add_argument("--snapshots", help=f"write a PNG strip of {SNAPSHOT_COUNT} frames of env 0 (fixed camera)")
+    p.add_argument(
+        "--snapshots", help=f"write a PNG strip of {SNAPSHOT_COUNT} frames of env 0 (fixed camera)"
+    )
     p.add_argument("--viewer", action="store_true", help="show env 0 in MuJoCo's viewer (needs a display)")
     p.add_argument("--export", choices=("onnx", "jit"), help="write the deployable policy to --out")
     p.add_argument("--out", help="directory for --export")
@@ -351,7 +362,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         env, policy, _ = load_deploy_policy(args.checkpoint, args.num_envs, args.seed, args.trajectories)
-    except CheckpointError as err:
+    except (CheckpointError, TrajectoryFileError, ConfigError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
 
@@ -375,6 +386,9 @@ def main(argv: list[str] | None = None) -> int:
             viewer = Viewer(env)
             closers.append(viewer)
         stats = rollout(env, policy, args.steps, video, snapshots, viewer)
+    except PlayError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     finally:
         for c in reversed(closers):
             c.close()

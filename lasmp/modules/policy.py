@@ -213,6 +213,17 @@ class LasmpActor(MLPModel):
         imp_reg = lam * (l_hat.detach() - l_imp).square().sum(-1).mean()
         return {"exp": exp, "imp_est": imp_est, "imp_reg": imp_reg}
 
+    @property
+    def estimation_names(self) -> tuple[str, ...]:
+        """Names of the x_exp dims the explicit estimator predicts."""
+        return tuple(X_EXP_NAMES[: self.num_explicit])
+
+    @torch.no_grad()
+    def estimates(self, obs: TensorDict) -> tuple[torch.Tensor, torch.Tensor]:
+        """(x_exp_hat (n, selected dims), l_imp_hat (n, latent)) from the history alone, raw units."""
+        x_hat, l_hat, _ = self._estimated_inputs(obs[GROUP_OBS], self.normalize_history(obs[GROUP_HISTORY]))
+        return x_hat, l_hat
+
     @torch.no_grad()
     def estimation_errors(self, obs: TensorDict) -> dict[str, float]:
         """Mean |x_exp_hat - x_exp| per named dim (and per u_aln dim), and mean ||l_imp_hat - l_imp||_2 (`l_imp_l2`)."""

@@ -105,6 +105,11 @@ class MovingPlatformEnv(BaseEnv):
         self.nonfinite_obs_values = 0  # replaced by 0 in the last observation (a fault symptom)
         self.readout: Readout | None = None
         self._fresh: np.ndarray | None = None  # envs reset since the last observation
+        # Hooks for evaluation: `episode_source.next_episodes(ids)` -> (trajectories, levels,
+        # Intrinsics) replaces the random draws at reset; `on_step(readout, collision)` sees every
+        # step's state before the finished envs are reset.
+        self.episode_source = None
+        self.on_step = None
         self.last_state: StepState | None = None
 
     # -- control -------------------------------------------------------------------------------
@@ -188,6 +193,8 @@ class MovingPlatformEnv(BaseEnv):
             "Termination/body_contact": float(r.body_collision.sum()),
             "Termination/fell": float(fell.sum()),
         }
+        if self.on_step is not None:
+            self.on_step(r, collision)
         if self.curriculum is not None:  # every step, so each iteration logs the level
             log["Curriculum/level"] = float(self.curriculum.level)
             log["Curriculum/success_rate"] = self.curriculum.success_rate
@@ -224,15 +231,17 @@ class MovingPlatformEnv(BaseEnv):
 
         n = len(ids)
         dr = self.cfg.domain_rand
-        if dr.enabled:
-            params = sample_intrinsics(n, dr.ranges, self.rng)
+        if self.episode_source is not None:
+            new_traj, levels, params = self.episode_source.next_episodes(ids)
         else:
-            params = nominal_intrinsics(n, self.cfg.platform.kd_factor_ref)
+            if dr.enabled:
+                params = sample_intrinsics(n, dr.ranges, self.rng)
+            else:
+                params = nominal_intrinsics(n, self.cfg.platform.kd_factor_ref)
+            new_traj, levels = self._next_trajectories(ids)
         for name, value in vars(params).items():
             getattr(self.intrinsics, name)[ids] = value
         self.writer.write(ids, params)
-
-        new_traj, levels = self._next_trajectories(ids)
         self.traj.replace_rows(ids, new_traj)
         self.traj_level[ids] = levels
 
@@ -250,7 +259,7 @@ class MovingPlatformEnv(BaseEnv):
         qpos[:, ix.plf_qpos] = 0.0
         ctrl = np.zeros((n, m.nu))
         ctrl[:, self.robot_act] = self.q_nominal
-        self.sim.reset(ids, qpos, np.zeros((n, m.nv)), ctrl, set_const=dr.enabled)
+        self.sim.reset(ids, qpos, np.zeros((n, m.nv)), ctrl, set_const=True)
 
         self.action[ids] = 0.0
         self.action_prev[ids] = 0.0

@@ -1,0 +1,304 @@
+"""The evaluation set Xi_eval (SPEC §12): fixed trajectories and fixed robots, one file.
+
+Definition
+    * ``trajectories``: M (default 10,000) platform trajectories drawn by
+      :func:`lasmp.envs.trajectories.sample` with the *testing* ranges
+      (``ranges_for_split("test")``: N uniform in 4..16, T = 10 s), from
+      ``np.random.default_rng([seed, 0])``.
+    * ``robots``: R (default 1,024) intrinsic-parameter draws
+      (:func:`lasmp.envs.moving_platform.domain_rand.sample_intrinsics`) from the *testing* ranges
+      of Table B (``DomainRandCfg().test``: trunk mass, CoM shift, foot friction, joint Kp/Kd and
+      the platform PD gain factors), from ``np.random.default_rng([seed, 1])``.
+      The two streams are independent: changing M does not change the robots. Changing M does
+      change the trajectories (``sample`` draws all N first, then all waypoints), so for quick runs
+      take the first K rows of the full set (:meth:`Benchmark.subset`), not a set drawn with M = K.
+    * Pairing (fixed, method-independent): episode k replays trajectory k with robot k % R
+      (:meth:`Benchmark.pairing`). Every method meets exactly the same (trajectory, robot) pairs.
+
+File (``.npz``, :func:`save` / :func:`load`), bit-for-bit reproducible
+    Written with our own ``zipfile`` writer: entries stored uncompressed, in a fixed order, with a
+    fixed date (1980-01-01 00:00:00) and permissions, each the ``np.lib.format.write_array`` bytes
+    (allow_pickle=False) of one array, so the same seed and sizes give the same bytes (and sha256).
+    It is still an ordinary ``np.load``-able archive. Keys: ``format`` = "lasmp-benchmark",
+    ``version`` = 1, ``seed``; the trajectories in the "waypoints" layout of the trajectory file
+    format (``knot_times_s`` (M, K), ``waypoints`` (M, K, 6), NaN-padded, knot 0 = zero pose at
+    t = 0 included; ``n_waypoints`` (M,)); the robots ``robot_trunk_mass_kg`` (R,),
+    ``robot_com_shift_m`` (R, 3), ``robot_foot_friction`` (R,), ``robot_joint_kp`` (R, 12),
+    ``robot_joint_kd`` (R, 12), ``robot_platform_kp_factor`` (R, 6),
+    ``robot_platform_kd_factor`` (R, 6). Trajectory splines are rebuilt on load (bit-identical).
+    The default set (seed 0, 10,000 x 1,024) is 9,939,086 bytes (~9.9 MB,
+    sha256 a1e4f3e9...) and takes ~6 s to generate, statistics included (one CPU).
+
+Make it::
+
+    python -m lasmp.eval.benchmark generate            # -> benchmarks/xi_eval.npz, seed 0
+    python -m lasmp.eval.benchmark info benchmarks/xi_eval.npz [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import io
+import json
+import os
+import sys
+import tempfile
+import zipfile
+from dataclasses import dataclass
+
+import numpy as np
+
+from lasmp.config import DomainRandCfg
+from lasmp.envs import trajectories as T
+from lasmp.envs.moving_platform.domain_rand import Intrinsics, sample_intrinsics
+
+FORMAT_NAME = "lasmp-benchmark"
+FORMAT_VERSION = 1
+DEFAULT_NUM_TRAJECTORIES = 10_000
+DEFAULT_NUM_ROBOTS = 1_024
+DEFAULT_PATH = os.path.join("benchmarks", "xi_eval.npz")
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+# robot array key -> (Intrinsics field, per-robot shape)
+ROBOT_FIELDS = {
+    "robot_trunk_mass_kg": ("trunk_mass_kg", ()),
+    "robot_com_shift_m": ("com_shift_m", (3,)),
+    "robot_foot_friction": ("foot_friction", ()),
+    "robot_joint_kp": ("joint_kp", (12,)),
+    "robot_joint_kd": ("joint_kd", (12,)),
+    "robot_platform_kp_factor": ("platform_kp_factor", (6,)),
+    "robot_platform_kd_factor": ("platform_kd_factor", (6,)),
+}
+TRAJ_KEYS = ("knot_times_s", "waypoints", "n_waypoints")
+
+
+class BenchmarkFileError(ValueError):
+    """A benchmark file is missing or malformed; the message names the file and the problem."""
+
+
+@dataclass
+class Benchmark:
+    """Xi_eval: M trajectories (testing ranges), R robots (testing intrinsics), the seed."""
+
+    trajectories: T.PiecewiseCubic
+    robots: Intrinsics
+    seed: int
+
+    @property
+    def num_trajectories(self) -> int:
+        return len(self.trajectories)
+
+    @property
+    def num_robots(self) -> int:
+        return int(self.robots.trunk_mass_kg.shape[0])
+
+    def pairing(self, episodes) -> tuple[np.ndarray, np.ndarray]:
+        """(trajectory rows, robot rows) of episodes k: trajectory k, robot k % R.
+
+        Fixed and method-independent, so every method is scored on the same pairs.
+        """
+        k = np.asarray(episodes, dtype=np.int64)
+        if k.size and (k.min() < 0 or k.max() >= self.num_trajectories):
+            raise IndexError(f"episode indices must be in 0..{self.num_trajectories - 1}")
+        return k.copy(), k % self.num_robots
+
+    def subset(self, num_trajectories: int) -> Benchmark:
+        """The first ``num_trajectories`` trajectories with the same robots (quick runs)."""
+        if not 1 <= num_trajectories <= self.num_trajectories:
+            raise ValueError(f"subset: need 1..{self.num_trajectories} trajectories, got {num_trajectories}")
+        return Benchmark(self.trajectories.subset(np.arange(num_trajectories)), self.robots, self.seed)
+
+
+def generate(
+    num_trajectories: int = DEFAULT_NUM_TRAJECTORIES, num_robots: int = DEFAULT_NUM_ROBOTS, seed: int = 0
+) -> Benchmark:
+    """Draw Xi_eval (module docstring): trajectories from stream [seed, 0], robots from [seed, 1]."""
+    if num_trajectories < 1 or num_robots < 1:
+        raise ValueError(f"generate: need >= 1 trajectories and robots, got {num_trajectories}, {num_robots}")
+    traj = T.sample(num_trajectories, T.ranges_for_split("test"), np.random.default_rng([seed, 0]))
+    robots = sample_intrinsics(num_robots, DomainRandCfg().test, np.random.default_rng([seed, 1]))
+    return Benchmark(traj, robots, int(seed))
+
+
+def _trajectory_arrays(traj: T.PiecewiseCubic) -> dict[str, np.ndarray]:
+    """The "waypoints" layout of lasmp.envs.trajectories.save (which builds it inline, no helper)."""
+    if np.any(traj.end_condition != T._CLAMPED):
+        raise ValueError("benchmark trajectories must be generated (clamped waypoint splines)")
+    return {
+        "knot_times_s": np.ascontiguousarray(traj.knot_times_s, dtype=np.float64),
+        "waypoints": np.ascontiguousarray(traj.knot_poses, dtype=np.float64),
+        "n_waypoints": np.ascontiguousarray(traj.n_knots - 1, dtype=np.int64),
+    }
+
+
+def _arrays(bench: Benchmark) -> dict[str, np.ndarray]:
+    out = {
+        "format": np.array(FORMAT_NAME),
+        "version": np.array(FORMAT_VERSION, dtype=np.int64),
+        "seed": np.array(bench.seed, dtype=np.int64),
+    }
+    out.update(_trajectory_arrays(bench.trajectories))
+    for key, (name, _) in ROBOT_FIELDS.items():
+        out[key] = np.ascontiguousarray(getattr(bench.robots, name), dtype=np.float64)
+    return out
+
+
+def save(path, bench: Benchmark) -> None:
+    """Write ``bench`` to ``path`` (verbatim) atomically; the same content gives the same bytes."""
+    path = os.fspath(path)
+    directory = os.path.dirname(os.path.abspath(path))
+    os.makedirs(directory, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".npz", dir=directory)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            with zipfile.ZipFile(f, "w", compression=zipfile.ZIP_STORED) as zf:
+                for key, arr in _arrays(bench).items():  # fixed insertion order
+                    buf = io.BytesIO()
+                    np.lib.format.write_array(buf, arr, allow_pickle=False)
+                    info = zipfile.ZipInfo(f"{key}.npy", date_time=_ZIP_DATE)
+                    info.compress_type = zipfile.ZIP_STORED
+                    info.external_attr = 0o644 << 16
+                    info.create_system = 3
+                    zf.writestr(info, buf.getvalue())
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)  # mkstemp makes 0600
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def load(path) -> Benchmark:
+    """Read and validate a benchmark file; any problem raises BenchmarkFileError naming it."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise BenchmarkFileError(f"{path}: no such benchmark file")
+    if not zipfile.is_zipfile(path):
+        raise BenchmarkFileError(f"{path}: not an .npz (zip) archive")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
+        raise BenchmarkFileError(
+            f"{path}: not a readable .npz archive (truncated or corrupt?): {exc}"
+        ) from None
+
+    def get(key: str) -> np.ndarray:
+        if key not in data:
+            raise BenchmarkFileError(f"{path}: missing key {key!r} (keys present: {sorted(data)})")
+        return data[key]
+
+    fmt = get("format")
+    if fmt.shape != () or fmt.dtype.kind != "U" or str(fmt) != FORMAT_NAME:
+        raise BenchmarkFileError(f"{path}: format is {fmt!r}, expected {FORMAT_NAME!r}")
+    for key in ("version", "seed"):
+        v = get(key)
+        if v.shape != () or v.dtype.kind not in "iu":
+            raise BenchmarkFileError(f"{path}: {key!r} must be an integer scalar, got {v.dtype} {v.shape}")
+    if int(data["version"]) != FORMAT_VERSION:
+        raise BenchmarkFileError(
+            f"{path}: unsupported version {int(data['version'])}, expected {FORMAT_VERSION}"
+        )
+
+    t, p, nw = (get(k) for k in TRAJ_KEYS)
+    for key, arr in (("knot_times_s", t), ("waypoints", p)):
+        if arr.dtype.kind != "f":
+            raise BenchmarkFileError(f"{path}: {key!r} must be float, got {arr.dtype}")
+    if t.ndim != 2 or t.shape[0] < 1 or p.shape != t.shape + (6,):
+        raise BenchmarkFileError(
+            f"{path}: wrong shape: 'knot_times_s' must be (M, K) and 'waypoints' (M, K, 6), "
+            f"got {t.shape} and {p.shape}"
+        )
+    if nw.dtype.kind not in "iu" or nw.shape != (t.shape[0],):
+        raise BenchmarkFileError(
+            f"{path}: wrong shape: 'n_waypoints' must be int ({t.shape[0]},), got {nw.dtype} {nw.shape}"
+        )
+    try:
+        nk = T._check_knots(t.astype(np.float64), p.astype(np.float64), path)
+    except T.TrajectoryFileError as exc:
+        raise BenchmarkFileError(str(exc)) from None
+    if np.any(nk != nw + 1):
+        raise BenchmarkFileError(f"{path}: 'n_waypoints' disagrees with the knots (NaN padding) in some rows")
+    traj = T.PiecewiseCubic.from_knots(t, p, nk, np.full(len(nk), T._CLAMPED, np.int8), nw)
+
+    robots, r = {}, None
+    for key, (name, shape) in ROBOT_FIELDS.items():
+        a = get(key)
+        r = a.shape[0] if r is None and a.ndim >= 1 else r
+        if a.dtype.kind != "f" or r is None or r < 1 or a.shape != (r, *shape):
+            raise BenchmarkFileError(
+                f"{path}: wrong shape/dtype: {key!r} must be float (R, {', '.join(map(str, shape))}) "
+                f"with R = {r} robots, got {a.dtype} {a.shape}"
+            )
+        if not np.all(np.isfinite(a)):
+            raise BenchmarkFileError(f"{path}: non-finite values (NaN/inf) in {key!r}")
+        robots[name] = a.astype(np.float64)
+    return Benchmark(traj, Intrinsics(**robots), int(data["seed"]))
+
+
+def sha256(path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def describe(path, bench: Benchmark) -> dict:
+    """File facts and trajectory statistics (lasmp.envs.trajectories.statistics, overall and per N)."""
+    return {
+        "path": os.fspath(path),
+        "bytes": os.path.getsize(path),
+        "sha256": sha256(path),
+        "seed": bench.seed,
+        "num_trajectories": bench.num_trajectories,
+        "num_robots": bench.num_robots,
+        "statistics": T.statistics(bench.trajectories),
+    }
+
+
+def _report(info: dict, as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(info))
+        return
+    print(
+        f"{info['path']}: {info['bytes']} bytes, sha256 {info['sha256']}\n"
+        f"seed {info['seed']}, {info['num_trajectories']} trajectories, {info['num_robots']} robots"
+    )
+    T._print_table(info["statistics"])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m lasmp.eval.benchmark", description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    pg = sub.add_parser("generate", help="draw Xi_eval and write it")
+    pg.add_argument("--out", default=DEFAULT_PATH)
+    pg.add_argument("--seed", type=int, default=0)
+    pg.add_argument("--num-trajectories", type=int, default=DEFAULT_NUM_TRAJECTORIES)
+    pg.add_argument("--num-robots", type=int, default=DEFAULT_NUM_ROBOTS)
+    pg.add_argument("--json", action="store_true", help="print one JSON object only")
+    pi = sub.add_parser("info", help="statistics and sha256 of an existing file")
+    pi.add_argument("file")
+    pi.add_argument("--json", action="store_true", help="print one JSON object only")
+    args = ap.parse_args(argv)
+    if args.cmd == "generate":
+        if args.num_trajectories < 1 or args.num_robots < 1:
+            ap.error("--num-trajectories and --num-robots must be >= 1")
+        bench = generate(args.num_trajectories, args.num_robots, args.seed)
+        save(args.out, bench)
+        path = args.out
+    else:
+        path = args.file
+        try:
+            bench = load(path)
+        except BenchmarkFileError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+    _report(describe(path, bench), args.json)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

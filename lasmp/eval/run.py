@@ -1,0 +1,135 @@
+"""Run a controller over the benchmark's episodes, in batches of envs, and collect metrics.
+
+Each env plays benchmark episodes one after another: when its episode ends (collision, fall or
+time-out), it resets into the next unplayed episode k (trajectory k, robot k mod R) until all K
+episodes are done; envs left without an episode keep running but are no longer counted. The
+pairing of trajectories and robots is therefore the same for every controller.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+
+import numpy as np
+import torch
+
+from lasmp.envs.moving_platform.domain_rand import Intrinsics
+from lasmp.eval.metrics import EpisodeMetrics
+
+Controller = Callable[[object], torch.Tensor]  # observations (TensorDict) -> actions (n, 12)
+
+
+def intrinsics_rows(p: Intrinsics, rows: np.ndarray) -> Intrinsics:
+    return Intrinsics(**{name: value[rows] for name, value in vars(p).items()})
+
+
+class BenchmarkSource:
+    """The env's episode source: benchmark episodes in order."""
+
+    def __init__(self, bench, num_episodes: int, num_envs: int):
+        if not 1 <= num_episodes <= len(bench.trajectories):
+            raise ValueError(f"num_episodes must be in [1, {len(bench.trajectories)}], got {num_episodes}")
+        self.bench = bench
+        self.num_episodes = num_episodes
+        self.next_episode = 0
+        self.episode_of_env = np.full(num_envs, -1)
+
+    def next_episodes(self, ids: np.ndarray):
+        k = self.next_episode + np.arange(len(ids))
+        self.next_episode += len(ids)
+        valid = k < self.num_episodes
+        self.episode_of_env[ids] = np.where(valid, k, -1)
+        traj_rows, robot_rows = self.bench.pairing(
+            np.minimum(k, self.num_episodes - 1)
+        )  # fillers replay the last
+        traj = self.bench.trajectories.subset(traj_rows)
+        return traj, traj.n_waypoints, intrinsics_rows(self.bench.robots, robot_rows)
+
+
+def relative_pose(readout) -> tuple[np.ndarray, np.ndarray]:
+    """(p_body_p (n, 3), R_pb (n, 3, 3)) of a readout."""
+    return readout.p_body_p, np.einsum("nji,njk->nik", readout.r_wp, readout.r_wb)
+
+
+def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=None, plot_episode: int | None = 0,
+                  progress: bool = True) -> dict:  # fmt: skip
+    """Play `num_episodes` benchmark episodes; per-episode metrics (arrays in benchmark order),
+    estimator errors (if `policy` has estimators) and one episode's estimate trace."""
+    source = BenchmarkSource(bench, num_episodes, env.num_envs)
+    env.episode_source = source
+    metrics = EpisodeMetrics(env.num_envs, env.cfg.rewards.h_des_m)
+    captured: dict = {}
+    env.on_step = lambda readout, collision: captured.update(
+        p=readout.p_body_p.copy(), r=relative_pose(readout)[1], tau=readout.tau.copy(),
+        q_dot=readout.q_dot.copy(), collision=collision.copy(),
+    )  # fmt: skip
+    obs, _ = env.reset()
+    metrics.start(np.arange(env.num_envs), *relative_pose(env.readout))
+    episodes = {key: np.full(num_episodes, np.nan) for key in ("collision", "steps", "height_violation_rate",
+                                                               "position_deviation_m", "rotation_deviation_rad",
+                                                               "power_w")}  # fmt: skip
+    est = {"abs_sum": None, "l2_sum": 0.0, "count": 0}
+    trace = {"true": [], "estimate": []}
+    done_count, start, last_print = 0, time.perf_counter(), 0.0
+    with torch.inference_mode():
+        while done_count < num_episodes:
+            ep_before = source.episode_of_env.copy()
+            active = ep_before >= 0
+            if policy is not None and getattr(policy, "num_explicit", None) is not None:
+                _accumulate_estimates(policy, obs, active, est, trace, ep_before, plot_episode)
+            obs, _, done, extras = env.step(controller(obs))
+            metrics.step(active, captured["collision"], captured["p"], captured["r"], captured["tau"],
+                         captured["q_dot"])  # fmt: skip
+            done = done.cpu().numpy()
+            ids = np.flatnonzero(done & active)
+            if len(ids):
+                collided = ~extras["time_outs"].cpu().numpy()[ids]
+                for key, value in metrics.close(ids, collided).items():
+                    episodes[key][ep_before[ids]] = value
+                done_count += len(ids)
+            restarted = np.flatnonzero(done)
+            if len(restarted):
+                p, r = relative_pose(env.readout)
+                metrics.start(restarted, p[restarted], r[restarted])
+            now = time.perf_counter()
+            if progress and (now - last_print > 2.0 or done_count == num_episodes):
+                last_print = now
+                rate = done_count / max(now - start, 1e-9)
+                eta = (num_episodes - done_count) / rate if rate > 0 else float("nan")
+                print(f"\r{done_count}/{num_episodes} episodes | {rate:.1f} episodes/s | ETA {eta:5.0f} s",
+                      end="", file=sys.stderr, flush=True)  # fmt: skip
+    if progress:
+        print(file=sys.stderr)
+    env.on_step = None
+    env.episode_source = None
+    out = {"episodes": episodes, "wall_time_s": time.perf_counter() - start}
+    if est["count"]:
+        names = policy.estimation_names
+        out["estimator"] = {
+            "x_exp_mean_abs_error": {
+                n: float(v) for n, v in zip(names, est["abs_sum"] / est["count"], strict=True)
+            },
+            "l_imp_mean_l2_error": est["l2_sum"] / est["count"],
+            "samples": est["count"],
+        }
+        out["trace"] = {k: np.array(v) for k, v in trace.items()} if trace["true"] else None
+    return out
+
+
+def _accumulate_estimates(policy, obs, active, est, trace, ep_before, plot_episode) -> None:
+    x_hat, l_hat = policy.estimates(obs)
+    k = x_hat.shape[1]
+    x_true = obs["priv_explicit"][:, :k]
+    l_true = policy.encoder(obs["priv_implicit"])
+    mask = torch.from_numpy(active)
+    abs_err = (x_hat - x_true).abs()[mask].sum(0).numpy()
+    est["abs_sum"] = abs_err if est["abs_sum"] is None else est["abs_sum"] + abs_err
+    est["l2_sum"] += float((l_hat - l_true).norm(dim=-1)[mask].sum())
+    est["count"] += int(active.sum())
+    if plot_episode is not None:
+        env_idx = np.flatnonzero(ep_before == plot_episode)
+        if len(env_idx):
+            trace["true"].append(x_true[env_idx[0]].numpy().copy())
+            trace["estimate"].append(x_hat[env_idx[0]].numpy().copy())

@@ -1,0 +1,152 @@
+"""Evaluation: metrics on constructed episodes, the benchmark loop's bookkeeping, evaluate.py."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lasmp.envs import trajectories as trj
+from lasmp.eval import benchmark as bm
+from lasmp.eval.metrics import EpisodeMetrics, rotation_angle, summarize
+from lasmp.eval.run import BenchmarkSource
+
+ROOT = Path(__file__).resolve().parents[1]
+H = 0.37
+
+
+def rot_z(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def play(metrics, env, steps):
+    """Feed (p, R, tau, q_dot, collision) per step to env `env` of a 2-env accumulator."""
+    for p, r, tau, q_dot, col in steps:
+        pp = np.zeros((2, 3))
+        pp[:, 2] = H
+        pp[env] = p
+        rr = np.tile(np.eye(3), (2, 1, 1))
+        rr[env] = r
+        tt = np.zeros((2, 12))
+        tt[env] = tau
+        qq = np.zeros((2, 12))
+        qq[env] = q_dot
+        cc = np.zeros(2, bool)
+        cc[env] = col
+        metrics.step(np.array([True, True]), cc, pp, rr, tt, qq)
+
+
+def test_collision_at_step_k_counts_violations_and_deviations_up_to_k_only():
+    m = EpisodeMetrics(2, H)
+    m.start(np.array([0, 1]), np.array([[0, 0, H]] * 2), np.tile(np.eye(3), (2, 1, 1)))
+    ok = ([0.0, 0.0, H], np.eye(3), np.zeros(12), np.zeros(12), False)
+    low = (
+        [0.3, 0.4, H - 0.2],
+        rot_z(0.5),
+        np.full(12, 2.0),
+        np.full(12, 1.0),
+        False,
+    )  # 0.2 m low: a violation
+    crash = ([5.0, 5.0, -3.0], rot_z(3.0), np.full(12, 100.0), np.full(12, 100.0), True)
+    after = ([9.0, 9.0, -9.0], rot_z(3.0), np.full(12, 100.0), np.full(12, 100.0), True)
+    play(m, 0, [ok, low, ok, crash, after])  # collision at step k = 3: steps 0..2 count
+    out = m.close(np.array([0]), np.array([True]))
+    assert out["steps"][0] == 3
+    assert out["collision"][0] == 1.0
+    assert out["height_violation_rate"][0] == pytest.approx(1 / 3)
+    assert out["position_deviation_m"][0] == pytest.approx(math.sqrt(0.3**2 + 0.4**2 + 0.2**2) / 3)
+    assert out["rotation_deviation_rad"][0] == pytest.approx(0.5 / 3)
+    assert out["power_w"][0] == pytest.approx(12 * 2.0 / 3)
+
+
+def test_episode_without_collision_counts_its_full_length():
+    m = EpisodeMetrics(2, H)
+    m.start(np.array([0, 1]), np.array([[0, 0, H]] * 2), np.tile(np.eye(3), (2, 1, 1)))
+    step = ([0.1, 0.0, H + 0.15], rot_z(0.2), np.full(12, -1.0), np.full(12, 1.0), False)  # negative power
+    play(m, 1, [step] * 500)
+    out = m.close(np.array([1]), np.array([False]))
+    assert out["steps"][0] == 500 and out["collision"][0] == 0.0
+    assert out["height_violation_rate"][0] == 1.0
+    assert out["position_deviation_m"][0] == pytest.approx(math.hypot(0.1, 0.15))
+    assert out["rotation_deviation_rad"][0] == pytest.approx(0.2)
+    assert out["power_w"][0] == 0.0  # only positive mechanical power counts
+
+
+def test_collision_on_the_first_step_counts_for_the_collision_rate_only():
+    m = EpisodeMetrics(2, H)
+    m.start(np.array([0, 1]), np.zeros((2, 3)), np.tile(np.eye(3), (2, 1, 1)))
+    play(m, 0, [([0, 0, 0.0], np.eye(3), np.zeros(12), np.zeros(12), True)])
+    out = m.close(np.array([0]), np.array([True]))
+    assert out["steps"][0] == 0 and np.isnan(out["position_deviation_m"][0])
+    summary = summarize({k: np.array([v[0], 0.0]) if k != "collision" else np.array([1.0, 0.0])
+                         for k, v in out.items()}, num_batches=2)  # fmt: skip
+    assert summary["collision_rate"]["mean"] == 0.5
+
+
+def test_summary_std_is_over_batches():
+    episodes = {k: np.array([0.0, 0.0, 1.0, 1.0]) for k in
+                ("collision", "height_violation_rate", "position_deviation_m", "rotation_deviation_rad", "power_w")}  # fmt: skip
+    s = summarize(episodes, num_batches=2)
+    assert s["collision_rate"] == {"mean": 0.5, "std": 0.5}
+
+
+def test_rotation_angle():
+    a = np.stack([np.eye(3), rot_z(0.3)])
+    b = np.stack([rot_z(1.0), rot_z(-0.2)])
+    assert np.allclose(rotation_angle(a, b), [1.0, 0.5])
+
+
+def test_benchmark_source_pairs_episodes_in_order_and_marks_the_rest_inactive():
+    bench = bm.generate(num_trajectories=5, num_robots=2, seed=0)
+    src = BenchmarkSource(bench, num_episodes=5, num_envs=3)
+    traj, levels, robots = src.next_episodes(np.array([0, 1, 2]))
+    assert src.episode_of_env.tolist() == [0, 1, 2]
+    assert np.array_equal(robots.trunk_mass_kg, bench.robots.trunk_mass_kg[[0, 1, 0]])
+    assert np.array_equal(levels, bench.trajectories.n_waypoints[:3])
+    src.next_episodes(np.array([1, 2]))
+    src.next_episodes(np.array([0]))
+    assert src.episode_of_env.tolist() == [-1, 3, 4]  # episode 5 does not exist: env 0 is a filler
+    with pytest.raises(ValueError, match="num_episodes"):
+        BenchmarkSource(bench, num_episodes=6, num_envs=1)
+
+
+def run_evaluate(*args, cwd):
+    return subprocess.run([sys.executable, str(ROOT / "evaluate.py"), *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=600)  # fmt: skip
+
+
+def test_evaluate_stand_still_end_to_end(tmp_path):
+    bench_path = tmp_path / "bench.npz"
+    bm.save(bench_path, bm.generate(num_trajectories=32, num_robots=8, seed=0))
+    out = run_evaluate("--controller", "stand_still", "--num-trajectories", "16", "--benchmark", str(bench_path),
+                       "--out", str(tmp_path / "ev"), cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    result = json.loads((tmp_path / "ev" / "metrics.json").read_text())
+    assert result["num_episodes"] == 16
+    for key in ("collision_rate", "height_violation_rate", "position_deviation_m", "rotation_deviation_rad",
+                "power_w"):  # fmt: skip
+        assert set(result["metrics"][key]) == {"mean", "std"}
+    assert 0.0 <= result["metrics"]["collision_rate"]["mean"] <= 1.0
+    assert result["metrics"]["power_w"]["mean"] > 0.0  # the PD does work against the platform's motion
+    assert "| collision rate |" in (tmp_path / "ev" / "metrics.md").read_text()
+
+
+def test_evaluate_refuses_a_malformed_trajectory_file(tmp_path):
+    bench_path = tmp_path / "bench.npz"
+    bm.save(bench_path, bm.generate(num_trajectories=4, num_robots=2, seed=0))
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, format="lasmp-trajectories", version=1, kind="samples", t_s=np.array([0.0, 1.0, 0.5]),
+             poses=np.zeros((1, 3, 6)))  # fmt: skip
+    out = run_evaluate("--controller", "stand_still", "--benchmark", str(bench_path), "--trajectories", str(bad),
+                       cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 2 and "bad.npz" in out.stderr and "Traceback" not in out.stderr
+    with pytest.raises(trj.TrajectoryFileError):
+        trj.load(bad)
+    out = run_evaluate("--controller", "stand_still", "--benchmark", str(tmp_path / "none.npz"), cwd=tmp_path)
+    assert out.returncode == 2 and "none.npz" in out.stderr

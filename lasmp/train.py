@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import datetime
 import os
+from dataclasses import is_dataclass
 from pathlib import Path
 
 import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo.runner import LasmpRunner, read_checkpoint
-from lasmp.config import ConfigError
-from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, validate_train_cfg
-
-TASKS = ("moving_platform",)
+from lasmp.config import ConfigError, build_env_cfg
+from lasmp.train_cfg import TrainCfg, env_schema, rsl_rl_cfg, validate_train_cfg
 
 
 def seed_everything(seed: int) -> None:
@@ -21,17 +20,22 @@ def seed_everything(seed: int) -> None:
 
 
 def make_env(cfg: TrainCfg, device: str = "cpu"):
-    if cfg.task not in TASKS:
-        raise ConfigError(f"task must be one of {list(TASKS)}, got {cfg.task!r}")
+    if cfg.task == "rough_static":
+        from lasmp.envs.rough_static.env import RoughStaticEnv
+
+        return RoughStaticEnv(cfg.env, device=device)
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
     return MovingPlatformEnv(cfg.env, device=device)
 
 
 def to_train_cfg(cfg) -> TrainCfg:
-    """An OmegaConf/Hydra config (or a TrainCfg) as a validated TrainCfg with env.seed = seed."""
+    """An OmegaConf/Hydra config (or a TrainCfg) as a validated TrainCfg, its env built with the
+    task's schema and env.seed = seed."""
     if not isinstance(cfg, TrainCfg):
         cfg = OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(TrainCfg), cfg))
+    if not is_dataclass(cfg.env):
+        cfg.env = build_env_cfg(dict(cfg.env or {}), schema=env_schema(cfg.task))
     cfg.env.seed = cfg.seed
     validate_train_cfg(cfg)
     return cfg

@@ -7,7 +7,7 @@ them; `validate_train_cfg` then checks value ranges, naming the field.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, is_dataclass
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
@@ -18,7 +18,18 @@ from lasmp.config import ConfigError, MovingPlatformCfg
 ACTOR_CLASS = "lasmp.modules.policy:LasmpActor"
 CRITIC_CLASS = "rsl_rl.models:MLPModel"
 ALGORITHM_CLASS = "lasmp.algo.ppo_roa:PPOROA"
-ACTOR_GROUPS = ["policy", "history", "priv_explicit", "priv_implicit", "alignment"]
+TASKS = ("moving_platform", "rough_static")
+
+
+def env_schema(task: str) -> type:
+    """The env config dataclass of a task."""
+    if task == "moving_platform":
+        return MovingPlatformCfg
+    if task == "rough_static":
+        from lasmp.config import RoughStaticCfg
+
+        return RoughStaticCfg
+    raise ConfigError(f"task must be one of {list(TASKS)}, got {task!r}")
 
 
 @dataclass
@@ -34,6 +45,7 @@ class PolicyCfg:
     use_alignment: bool = True  # the alignment command u_aln is an actor input
     explicit: str = "all"  # explicit estimator outputs: all | no_platform | none
     history_input: bool = False  # the raw observation history is an actor input
+    command_input: bool = False  # a velocity command (group `command`) is an actor input (R-S baseline)
     init_noise_std: float = 1.0
 
 
@@ -71,7 +83,9 @@ class TrainCfg:
     device: str = "cpu"  # where the learner runs; physics always runs on the CPU
     torch_threads: int = 0  # CPU threads of torch for the learner; 0 = torch's default (all cores)
     resume: str | None = None  # a checkpoint file or a run directory (its latest model_<N>.pt)
-    env: MovingPlatformCfg = field(default_factory=MovingPlatformCfg)
+    # the task's env config (lasmp/config.py: MovingPlatformCfg or RoughStaticCfg); checked against
+    # the task's schema when the run starts (unknown keys and bad values fail naming the field)
+    env: Any = field(default_factory=dict)
     policy: PolicyCfg = field(default_factory=PolicyCfg)
     algo: AlgoCfg = field(default_factory=AlgoCfg)
     runner: RunnerCfg = field(default_factory=RunnerCfg)
@@ -82,6 +96,8 @@ def register_configs() -> None:
 
 
 def validate_train_cfg(cfg: TrainCfg) -> None:
+    if not is_dataclass(cfg.env):
+        raise ConfigError("env must be built with its task's schema (lasmp.train.to_train_cfg does it)")
     cfg.env.validate("env")
     p, a, r = cfg.policy, cfg.algo, cfg.runner
     if p.explicit not in ("all", "no_platform", "none"):
@@ -115,6 +131,15 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
         raise ConfigError(f"device must be cpu or cuda[:N], got {cfg.device!r}")
 
 
+def actor_groups(cfg: TrainCfg) -> list[str]:
+    groups = ["policy", "history", "priv_explicit", "priv_implicit"]
+    if cfg.policy.use_alignment:
+        groups.append("alignment")
+    if cfg.policy.command_input:
+        groups.append("command")
+    return groups
+
+
 def rsl_rl_cfg(cfg: TrainCfg) -> dict[str, Any]:
     """The dict rsl_rl's OnPolicyRunner takes."""
     p, a, r = cfg.policy, cfg.algo, cfg.runner
@@ -123,7 +148,7 @@ def rsl_rl_cfg(cfg: TrainCfg) -> dict[str, Any]:
         "num_steps_per_env": r.num_steps_per_env,
         "save_interval": r.save_interval,
         "check_for_nan": r.check_for_nan,
-        "obs_groups": {"actor": list(ACTOR_GROUPS), "critic": ["critic"]},
+        "obs_groups": {"actor": actor_groups(cfg), "critic": ["critic"]},
         "actor": {
             "class_name": ACTOR_CLASS,
             "hidden_dims": list(p.actor_hidden_dims),
@@ -137,6 +162,7 @@ def rsl_rl_cfg(cfg: TrainCfg) -> dict[str, Any]:
             "use_alignment": p.use_alignment,
             "explicit": p.explicit,
             "history_input": p.history_input,
+            "command_input": p.command_input,
         },
         "critic": {
             "class_name": CRITIC_CLASS,

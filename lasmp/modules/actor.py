@@ -15,6 +15,7 @@ GROUP_HISTORY = "history"
 GROUP_EXPLICIT = "priv_explicit"
 GROUP_IMPLICIT = "priv_implicit"
 GROUP_ALIGNMENT = "alignment"
+GROUP_COMMAND = "command"  # a velocity command [v_x, v_y, omega_z] in B (rough_static task)
 
 GYRO_Z_COL = 5  # o = [acc (3), gyro (3), ...]: measured yaw rate omega^B_body,z, rad/s
 

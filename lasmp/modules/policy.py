@@ -12,6 +12,7 @@ from torch import nn
 
 from lasmp.modules.actor import (
     GROUP_ALIGNMENT,
+    GROUP_COMMAND,
     GROUP_EXPLICIT,
     GROUP_HISTORY,
     GROUP_IMPLICIT,
@@ -57,6 +58,7 @@ class LasmpActor(MLPModel):
         use_alignment: bool = True,
         explicit: str = "all",
         history_input: bool = False,
+        command_input: bool = False,
     ) -> None:
         sel = explicit_indices(explicit)
         if use_alignment and explicit != "all":
@@ -71,6 +73,9 @@ class LasmpActor(MLPModel):
         self.num_alignment = 3 if use_alignment else 0
         self.latent_dim = latent_dim
         self.history_input = bool(history_input)
+        # an external velocity command (group `command`, 3), read in both modes: the R-S baseline
+        self.command_input = bool(command_input)
+        self.num_command = 3 if command_input else 0
         super().__init__(
             obs, obs_groups, obs_set, output_dim, hidden_dims, activation, obs_normalization, distribution_cfg
         )
@@ -97,6 +102,7 @@ class LasmpActor(MLPModel):
         needed = [GROUP_OBS, GROUP_HISTORY, GROUP_IMPLICIT]
         needed += [GROUP_EXPLICIT] if self.num_explicit else []
         needed += [GROUP_ALIGNMENT] if self.use_alignment else []
+        needed += [GROUP_COMMAND] if self.command_input else []
         missing = [g for g in needed if g not in active]
         if missing:
             raise ValueError(f"obs_groups[{obs_set!r}] lacks {missing} needed by LasmpActor")
@@ -112,7 +118,7 @@ class LasmpActor(MLPModel):
         self.num_obs = o.shape[-1]
         self.history_len = hist.shape[1]
         self.num_implicit = obs[GROUP_IMPLICIT].shape[-1]
-        return active, self.num_obs + self.num_explicit + self.num_alignment
+        return active, self.num_obs + self.num_explicit + self.num_alignment + self.num_command
 
     def _get_latent_dim(self) -> int:
         """Backbone input size: normalized [o, x_exp, u_aln] + l_imp (+ flattened history)."""
@@ -151,9 +157,11 @@ class LasmpActor(MLPModel):
         return x_hat, l_hat, u_hat
 
     def _normalized_part(
-        self, o: torch.Tensor, x_exp: torch.Tensor, u_aln: torch.Tensor | None
+        self, o: torch.Tensor, x_exp: torch.Tensor, u_aln: torch.Tensor | None, obs: TensorDict
     ) -> torch.Tensor:
         parts = [o, x_exp] + ([u_aln] if u_aln is not None else [])
+        if self.command_input:
+            parts.append(obs[GROUP_COMMAND])
         return torch.cat(parts, dim=-1)
 
     def get_latent(
@@ -166,7 +174,7 @@ class LasmpActor(MLPModel):
             x_exp, l_imp, u_aln = self._estimated_inputs(o, history_n)
         else:
             x_exp, l_imp, u_aln = self._privileged_inputs(obs)
-        parts = [self.obs_normalizer(self._normalized_part(o, x_exp, u_aln)), l_imp]
+        parts = [self.obs_normalizer(self._normalized_part(o, x_exp, u_aln, obs)), l_imp]
         if self.history_input:
             parts.append(history_n.flatten(1))
         return torch.cat(parts, dim=-1)
@@ -178,7 +186,7 @@ class LasmpActor(MLPModel):
                 obs[GROUP_EXPLICIT][:, : self.num_explicit] if self.num_explicit else obs[GROUP_OBS][:, :0]
             )
             u_aln = obs[GROUP_ALIGNMENT] if self.use_alignment else None
-            self.obs_normalizer.update(self._normalized_part(obs[GROUP_OBS], x_exp, u_aln))
+            self.obs_normalizer.update(self._normalized_part(obs[GROUP_OBS], x_exp, u_aln, obs))
         self.encoder.update_normalization(obs[GROUP_IMPLICIT])
 
     # ----------------------------------------------------------------- ROA
@@ -244,8 +252,17 @@ class LasmpActor(MLPModel):
     # ----------------------------------------------------------------- export
     def as_jit(self) -> nn.Module:
         """Deployment-mode policy over the proprioceptive window only (TorchScript-scriptable)."""
+        self._check_exportable()
         return LasmpDeployPolicy(self)
 
     def as_onnx(self, verbose: bool) -> nn.Module:
         """Deployment-mode policy over the proprioceptive window only (ONNX-exportable)."""
+        self._check_exportable()
         return LasmpDeployPolicy(self, verbose)
+
+    def _check_exportable(self) -> None:
+        if self.command_input:
+            raise ValueError(
+                "export takes only the proprioceptive window; a command-conditioned policy "
+                "(command_input=True, the R-S baseline) needs a command input and is not exported"
+            )

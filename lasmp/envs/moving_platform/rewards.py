@@ -197,10 +197,12 @@ class RewardManager:
         params: RewardParams,
         num_envs: int,
         device: torch.device | str = "cpu",
+        registry: Mapping[str, Callable] | None = None,
     ) -> None:
-        unknown = sorted(set(weights) - set(REWARD_TERMS))
+        registry = REWARD_TERMS if registry is None else registry  # another task's terms
+        unknown = sorted(set(weights) - set(registry))
         if unknown:
-            raise ValueError(f"unknown reward term(s) {unknown}; valid names: {sorted(REWARD_TERMS)}")
+            raise ValueError(f"unknown reward term(s) {unknown}; valid names: {sorted(registry)}")
         active: list[tuple[str, float]] = []
         for name, w in weights.items():
             w = float(w)
@@ -212,7 +214,7 @@ class RewardManager:
         self.num_envs = num_envs
         self.device = torch.device(device)
         self.term_names: list[str] = [n for n, _ in active]
-        self._fns = [REWARD_TERMS[n] for n in self.term_names]
+        self._fns = [registry[n] for n in self.term_names]
         self._weights = [w for _, w in active]
         self._episode_sums = torch.zeros(len(active), num_envs, device=self.device)
 

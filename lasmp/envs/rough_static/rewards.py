@@ -1,0 +1,149 @@
+"""Reward terms of the R-S baseline (locomotion on static rough terrain), legged_gym-style.
+
+A registry of small pure functions, weights as data, summed and logged per episode by the
+moving-platform `RewardManager` (given this module's `REWARD_TERMS`). Each term returns its
+UNWEIGHTED value (num_envs,); the sign lives in the weight; every weighted term is
+multiplied by dt_s in the manager.
+
+    track_lin_vel_xy   exp(-‖v_cmd,xy - v_b,xy‖² / sigma)          +1.0
+    track_ang_vel_z    exp(-(w_cmd - w_b,z)² / sigma)              +0.5
+    lin_vel_z          v_b,z²                                      -2.0
+    ang_vel_xy         ‖w_b,xy‖²                                   -0.05
+    torques            ‖tau‖²                                      -1e-4
+    joint_acc          ‖q_ddot‖²                                   -2.5e-7
+    action_rate        ‖a - a_prev‖²                               -0.01
+    body_contact       1 if trunk/hip/thigh/calf touches the ground -1.0
+    orientation        ‖g_xy in b‖² (unit gravity, = sin² of the tilt) -1.0
+    feet_air_time      Σ_i touchdown_i (t_air_i - 0.5 s), command != 0   +1.0
+    stand_still        ‖q - q_nominal‖₁, command == 0              -0.1
+
+Our choices: sigma = 0.25 (legged_gym's tracking_sigma); velocities are the trunk's (link
+origin) in its own frame; feet_air_time is the one signed term (as legged_gym: short steps
+cost, long swings pay) and is paid only while the command is non-zero (legged_gym uses
+‖v_cmd,xy‖ > 0.1; ours: any non-zero command, since zero commands are exactly zero).
+body_contact also terminates the episode, so it fires on the fall's last step only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import torch
+
+
+@dataclass
+class RoughRewardParams:
+    """Shape parameters of the reward terms (not weights)."""
+
+    tracking_sigma: float = 0.25  # (m/s)² and (rad/s)²
+    air_time_target_s: float = 0.5
+
+
+@dataclass
+class RoughStepState:
+    """Per-step quantities the terms read; (n, ...) float32 tensors unless noted, SI units."""
+
+    dt_s: float
+    v_body_b: torch.Tensor  # (n, 3) trunk velocity, body frame, m/s
+    omega_body_b: torch.Tensor  # (n, 3) trunk angular velocity, body frame, rad/s
+    command: torch.Tensor  # (n, 3) [v_x, v_y, w_z] command, body frame
+    gravity_b: torch.Tensor  # (n, 3) unit gravity direction in the body frame
+    q_dev: torch.Tensor  # (n, 12) q - q_nominal, rad
+    tau: torch.Tensor  # (n, 12) N·m
+    q_ddot: torch.Tensor  # (n, 12) rad/s²
+    action: torch.Tensor  # (n, 12)
+    action_prev: torch.Tensor  # (n, 12)
+    body_contact: torch.Tensor  # (n,) bool
+    touchdown: torch.Tensor  # (n, 4) bool, foot made contact this step
+    t_air_s: torch.Tensor  # (n, 4) length of the air phase that ended at touchdown, s
+
+
+RoughRewardFn = Callable[[RoughStepState, RoughRewardParams], torch.Tensor]
+REWARD_TERMS: dict[str, RoughRewardFn] = {}
+
+
+def reward_term(fn: RoughRewardFn) -> RoughRewardFn:
+    if fn.__name__ in REWARD_TERMS:
+        raise ValueError(f"reward term {fn.__name__!r} registered twice")
+    REWARD_TERMS[fn.__name__] = fn
+    return fn
+
+
+def _sq(x: torch.Tensor) -> torch.Tensor:
+    return torch.sum(torch.square(x), dim=-1)
+
+
+def _moving(s: RoughStepState) -> torch.Tensor:
+    return torch.any(s.command != 0, dim=-1).to(s.v_body_b.dtype)
+
+
+@reward_term
+def track_lin_vel_xy(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return torch.exp(-_sq(s.command[:, :2] - s.v_body_b[:, :2]) / p.tracking_sigma)
+
+
+@reward_term
+def track_ang_vel_z(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return torch.exp(-torch.square(s.command[:, 2] - s.omega_body_b[:, 2]) / p.tracking_sigma)
+
+
+@reward_term
+def lin_vel_z(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return torch.square(s.v_body_b[:, 2])
+
+
+@reward_term
+def ang_vel_xy(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return _sq(s.omega_body_b[:, :2])
+
+
+@reward_term
+def torques(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return _sq(s.tau)
+
+
+@reward_term
+def joint_acc(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return _sq(s.q_ddot)
+
+
+@reward_term
+def action_rate(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return _sq(s.action - s.action_prev)
+
+
+@reward_term
+def body_contact(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return s.body_contact.to(s.v_body_b.dtype)
+
+
+@reward_term
+def orientation(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return _sq(s.gravity_b[:, :2])
+
+
+@reward_term
+def feet_air_time(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    paid = s.touchdown.to(s.t_air_s.dtype) * (s.t_air_s - p.air_time_target_s)
+    return torch.sum(paid, dim=-1) * _moving(s)
+
+
+@reward_term
+def stand_still(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+    return torch.sum(torch.abs(s.q_dev), dim=-1) * (1.0 - _moving(s))
+
+
+DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
+    "track_lin_vel_xy": 1.0,
+    "track_ang_vel_z": 0.5,
+    "lin_vel_z": -2.0,
+    "ang_vel_xy": -0.05,
+    "torques": -1e-4,
+    "joint_acc": -2.5e-7,
+    "action_rate": -0.01,
+    "body_contact": -1.0,
+    "orientation": -1.0,
+    "feet_air_time": 1.0,
+    "stand_still": -0.1,
+}

@@ -1,0 +1,156 @@
+"""The static rough-terrain world of the R-S baseline, built in code with `mujoco.MjSpec`.
+
+World = our A1 (its MJCF is the base spec, as in `lasmp.envs.scene`) + one heightfield shared
+by every env. The ground is generated from `TerrainCfg.seed`:
+- the field is cut into square tiles; each tile is rough ground only, a gentle pyramid slope
+  (0 at the tile border, peak <= `feature_height_m` at its centre) or a low square step
+  (a raised block of height <= `feature_height_m`, half the tile wide);
+- everywhere, smoothed uniform noise of amplitude `roughness_m` is added (legged_gym's
+  "random uniform" terrain, smoothed by a box filter instead of interpolated).
+
+Heightfield layout (MuJoCo): the geom sits at the origin, the grid spans
+[-L_x/2, L_x/2] x [-L_y/2, L_y/2]; row r is y, column c is x; ground height = geom z +
+size_z * data[r, c] with data in [0, 1]. The robot's collision geoms (contype 1) touch the
+ground (contype 0, conaffinity 1); the feet keep contact priority so their randomized
+friction decides their contacts. Sensors are the robot part of the moving-platform scene:
+foot contacts (found + net force) and one contact sensor per non-foot body.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+from scipy.ndimage import uniform_filter
+
+from lasmp.config import SimCfg, TerrainCfg
+from lasmp.robots import a1
+
+HFIELD_NAME = "terrain"
+
+
+class Heightfield:
+    """A height grid (m) over a rectangle centred at the world origin, with look-ups."""
+
+    def __init__(self, heights_m: np.ndarray, resolution_m: float):
+        self.heights_m = heights_m  # (nrow = y, ncol = x)
+        self.resolution_m = resolution_m
+        self.nrow, self.ncol = heights_m.shape
+        self.half_x_m = 0.5 * resolution_m * (self.ncol - 1)
+        self.half_y_m = 0.5 * resolution_m * (self.nrow - 1)
+
+    def _grid(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        gx = np.clip((xy[..., 0] + self.half_x_m) / self.resolution_m, 0.0, self.ncol - 1.000001)
+        gy = np.clip((xy[..., 1] + self.half_y_m) / self.resolution_m, 0.0, self.nrow - 1.000001)
+        return gx, gy
+
+    def height_at(self, xy: np.ndarray) -> np.ndarray:
+        """Bilinear ground height (m) under world points xy (..., 2)."""
+        gx, gy = self._grid(xy)
+        c, r = np.floor(gx).astype(int), np.floor(gy).astype(int)
+        fx, fy = gx - c, gy - r
+        h = self.heights_m
+        return (
+            h[r, c] * (1 - fx) * (1 - fy)
+            + h[r, c + 1] * fx * (1 - fy)
+            + h[r + 1, c] * (1 - fx) * fy
+            + h[r + 1, c + 1] * fx * fy
+        )
+
+    def max_height_near(self, xy: np.ndarray, radius_m: float) -> np.ndarray:
+        """Highest grid point (m) within a square of half-side radius_m (+1 cell) around each xy (n, 2)."""
+        gx, gy = self._grid(xy)
+        k = int(math.ceil(radius_m / self.resolution_m)) + 1
+        out = np.empty(len(xy))
+        for i, (x, y) in enumerate(zip(gx, gy, strict=True)):
+            c, r = int(x), int(y)
+            out[i] = self.heights_m[max(r - k, 0) : r + k + 2, max(c - k, 0) : c + k + 2].max()
+        return out
+
+
+def generate_heights(cfg: TerrainCfg) -> np.ndarray:
+    """(nrow, ncol) ground heights in m, min 0, from cfg.seed."""
+    rng = np.random.default_rng(cfg.seed)
+    ncol = int(round(cfg.size_m[0] / cfg.resolution_m)) + 1
+    nrow = int(round(cfg.size_m[1] / cfg.resolution_m)) + 1
+    h = np.zeros((nrow, ncol))
+    tile = max(int(round(cfg.tile_m / cfg.resolution_m)), 2)
+    yy, xx = np.meshgrid(np.arange(tile), np.arange(tile), indexing="ij")
+    u = np.maximum(np.abs(xx / (tile - 1) - 0.5), np.abs(yy / (tile - 1) - 0.5)) * 2.0  # 0 centre .. 1 border
+    for r0 in range(0, nrow, tile):
+        for c0 in range(0, ncol, tile):
+            kind = rng.choice(3, p=cfg.tile_kind_probs)
+            peak = rng.uniform(0.25, 1.0) * cfg.feature_height_m
+            if kind == 1:  # pyramid slope
+                patch = peak * (1.0 - u)
+            elif kind == 2:  # low step: a raised block half the tile wide
+                patch = peak * (u <= 0.5)
+            else:
+                continue
+            block = h[r0 : r0 + tile, c0 : c0 + tile]
+            block += patch[: block.shape[0], : block.shape[1]]
+    if cfg.roughness_m > 0:
+        noise = rng.uniform(-1.0, 1.0, size=(nrow, ncol))
+        noise = uniform_filter(noise, size=cfg.smoothing_cells, mode="wrap")
+        noise *= cfg.roughness_m / max(np.abs(noise).max(), 1e-12)
+        h += noise
+    return h - h.min()
+
+
+def build_spec(terrain: TerrainCfg, sim: SimCfg) -> tuple[mujoco.MjSpec, Heightfield]:
+    spec = mujoco.MjSpec.from_file(str(a1.MJCF_PATH))
+    spec.modelname = "lasmp_rough_static"
+    spec.option.timestep = sim.dt_s
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.iterations = sim.solver_iterations
+    spec.option.ls_iterations = max(5, sim.solver_iterations // 2)
+    world = spec.worldbody
+    world.add_light(pos=[0, 0, 12], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
+
+    heights = generate_heights(terrain)
+    hf = Heightfield(heights, terrain.resolution_m)
+    top = max(float(heights.max()), 1e-3)
+    spec.add_hfield(
+        name=HFIELD_NAME,
+        size=[hf.half_x_m, hf.half_y_m, top, 0.1],
+        nrow=hf.nrow,
+        ncol=hf.ncol,
+        userdata=(heights / top).ravel().tolist(),  # already in [0, 1]: MuJoCo's normalization is a no-op
+    )
+    world.add_geom(
+        name=HFIELD_NAME,
+        type=mujoco.mjtGeom.mjGEOM_HFIELD,
+        hfieldname=HFIELD_NAME,
+        contype=0,
+        conaffinity=1,
+        friction=[terrain.friction, 0.005, 0.0001],
+        rgba=[0.45, 0.5, 0.45, 1.0],
+    )
+    for leg in a1.LEG_NAMES:
+        spec.geom(f"{leg}_foot").priority = 1
+
+    found = 1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)
+    force = 1 << int(mujoco.mjtConDataField.mjCONDATA_FORCE)
+    for leg in a1.LEG_NAMES:
+        s = spec.add_sensor(
+            name=f"{leg}_foot_contact",
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            objtype=mujoco.mjtObj.mjOBJ_GEOM,
+            objname=f"{leg}_foot",
+        )
+        s.intprm = [found | force, 3, 1]  # reduce="netforce"
+    for name in a1.NON_FOOT_COLLISION_GEOMS:  # body1=name: that body's geoms (feet are bodies of their own)
+        s = spec.add_sensor(
+            name=f"{name}_collision",
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            objtype=mujoco.mjtObj.mjOBJ_BODY,
+            objname=name,
+        )
+        s.intprm = [found, 0, 1]
+    return spec, hf
+
+
+def build_model(terrain: TerrainCfg, sim: SimCfg) -> tuple[mujoco.MjModel, Heightfield]:
+    spec, hf = build_spec(terrain, sim)
+    return spec.compile(), hf

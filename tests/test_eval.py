@@ -150,3 +150,22 @@ def test_evaluate_refuses_a_malformed_trajectory_file(tmp_path):
         trj.load(bad)
     out = run_evaluate("--controller", "stand_still", "--benchmark", str(tmp_path / "none.npz"), cwd=tmp_path)
     assert out.returncode == 2 and "none.npz" in out.stderr
+
+
+def test_oracle_command_points_to_the_platform_centre_in_the_heading_frame():
+    from lasmp.envs.moving_platform.env import MovingPlatformEnv
+    from lasmp.envs.moving_platform.readout import read
+    from lasmp.eval.cli import oracle_command
+
+    env = MovingPlatformEnv({"num_envs": 2, "domain_rand": {"enabled": False}})
+    env.reset()
+    ix = env.index
+    yaw = math.pi / 2  # facing world +y
+    env.sim.qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = [math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)]
+    env.sim.qpos[0, ix.root_qpos] = 0.5  # 0.5 m along world +x of the centre: the centre is on its left
+    env.sim.qpos[1, ix.root_qpos] = 3.0  # far away: the command saturates
+    env.sim.batch.forward()
+    env.readout = read(env.sim, ix)
+    cmd = oracle_command(env).numpy()
+    assert np.allclose(cmd[0], [0.0, 0.5, 0.0], atol=1e-6)
+    assert np.allclose(cmd[1], [0.0, 1.0, 0.0], atol=1e-6)

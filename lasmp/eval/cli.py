@@ -2,6 +2,8 @@
 
     python evaluate.py --checkpoint PATH [--plot-estimates]      # a trained LAS-MP policy (deployment mode)
     python evaluate.py --controller stand_still                   # PD to q_nominal, a = 0
+    python evaluate.py --controller rs --checkpoint RS_PATH       # the R-S policy, zero velocity command
+    python evaluate.py --controller rs_oracle --checkpoint RS_PATH  # R-S with the oracle command (below)
     options: --benchmark FILE (default benchmarks/xi_eval.npz, made on first use)
              --trajectories FILE (any trajectory file; robots still come from the benchmark)
              --num-trajectories K (the first K episodes) --out DIR --batch-envs 1024 --seed 0
@@ -16,6 +18,7 @@ import dataclasses
 import sys
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from lasmp.algo.runner import CheckpointError
@@ -48,22 +51,59 @@ def load_or_make_benchmark(path: Path):
 
 
 def build(args):
-    """(env, controller, policy or None, method name)."""
-    n = min(args.batch_envs, args.num_trajectories)
-    if args.checkpoint:
-        from lasmp.envs.moving_platform.env import MovingPlatformEnv
-        from lasmp.play import load_deploy_policy
-
-        _, policy, cfg = load_deploy_policy(args.checkpoint, num_envs=1, seed=args.seed)
-        env_cfg = dataclasses.replace(cfg.env)
-        env_cfg = build_env_cfg({**_asdict(env_cfg), **eval_env_overrides(n, args.seed)})
-        env = MovingPlatformEnv(env_cfg)
-        return env, (lambda obs: policy(obs)), policy, f"checkpoint {args.checkpoint} ({cfg.policy.name})"
+    """(env, controller, policy with estimators or None, method name)."""
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
+    from lasmp.play import load_deploy_policy
 
-    env = MovingPlatformEnv(build_env_cfg(eval_env_overrides(n, args.seed)))
-    zeros = torch.zeros(n, env.num_actions)
-    return env, (lambda obs: zeros), None, args.controller
+    n = min(args.batch_envs, args.num_trajectories)
+    if args.controller == "stand_still":
+        env = MovingPlatformEnv(build_env_cfg(eval_env_overrides(n, args.seed)))
+        zeros = torch.zeros(n, env.num_actions)
+        return env, (lambda obs: zeros), None, "stand_still"
+    _, policy, cfg = load_deploy_policy(args.checkpoint, num_envs=1, seed=args.seed)
+    if args.controller in ("rs", "rs_oracle"):
+        if cfg.task != "rough_static" or not policy.command_input:
+            raise CheckpointError(f"--controller {args.controller} needs an R-S checkpoint (task=rough_static), "
+                                  f"got task={cfg.task}")  # fmt: skip
+        env = MovingPlatformEnv(build_env_cfg(eval_env_overrides(n, args.seed)))
+        command = oracle_command if args.controller == "rs_oracle" else zero_command
+
+        def rs_controller(obs):
+            obs = obs.clone()
+            obs["command"] = command(env)
+            return policy(obs)
+
+        return env, rs_controller, None, f"{args.controller} ({args.checkpoint})"
+    if cfg.task != "moving_platform":
+        raise CheckpointError(
+            f"--checkpoint without --controller needs a moving_platform policy, got {cfg.task}"
+        )
+    env_cfg = build_env_cfg({**_asdict(cfg.env), **eval_env_overrides(n, args.seed)})
+    env = MovingPlatformEnv(env_cfg)
+    return env, (lambda obs: policy(obs)), policy, f"LAS-MP checkpoint {args.checkpoint} ({cfg.policy.name})"
+
+
+def zero_command(env) -> torch.Tensor:
+    return torch.zeros(env.num_envs, 3)
+
+
+ORACLE_GAIN_PER_S = 1.0  # commanded speed per metre of offset from the platform centre
+ORACLE_MAX_MPS = 1.0  # the R-S policy's training command range
+
+
+def oracle_command(env) -> torch.Tensor:
+    """[v_x, v_y, 0] toward the platform centre, in the trunk's heading frame: a clipped proportional
+    law on the horizontal offset from the trunk to the platform centre, from privileged world
+    positions (v = clip(ORACLE_GAIN_PER_S * offset, +-ORACLE_MAX_MPS) per axis); no yaw command."""
+    r = env.readout
+    offset_w = r.p_plf_w[:, :2] - r.p_body_w[:, :2]
+    yaw = r.phi_body_w[:, 2]
+    c, s = np.cos(yaw), np.sin(yaw)
+    offset_h = np.stack(
+        [c * offset_w[:, 0] + s * offset_w[:, 1], -s * offset_w[:, 0] + c * offset_w[:, 1]], axis=1
+    )
+    v = np.clip(ORACLE_GAIN_PER_S * offset_h, -ORACLE_MAX_MPS, ORACLE_MAX_MPS)
+    return torch.from_numpy(np.concatenate([v, np.zeros((env.num_envs, 1))], axis=1).astype(np.float32))
 
 
 def _asdict(cfg) -> dict:
@@ -74,9 +114,11 @@ def _asdict(cfg) -> dict:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    who = p.add_mutually_exclusive_group(required=True)
-    who.add_argument("--checkpoint", help="a checkpoint file or run directory of a LAS-MP policy")
-    who.add_argument("--controller", choices=["stand_still"], help="a baseline controller")
+    p.add_argument(
+        "--checkpoint", help="a checkpoint file or run directory (LAS-MP, or R-S for rs/rs_oracle)"
+    )
+    p.add_argument("--controller", choices=["stand_still", "rs", "rs_oracle"],
+                   help="a baseline (default with --checkpoint: the checkpoint's own LAS-MP policy)")  # fmt: skip
     p.add_argument("--benchmark", type=Path, default=DEFAULT_BENCHMARK)
     p.add_argument("--trajectories", type=Path, help="a trajectory file to play instead of the benchmark's")
     p.add_argument("--num-trajectories", type=int, default=None, help="the first K episodes (default: all)")
@@ -87,6 +129,10 @@ def main(argv=None) -> int:
     )
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
+    if args.controller == "stand_still" and args.checkpoint:
+        p.error("--controller stand_still takes no --checkpoint")
+    if args.controller != "stand_still" and not args.checkpoint:
+        p.error("give --checkpoint PATH (a LAS-MP policy, or an R-S policy with --controller rs|rs_oracle)")
     try:
         bench = load_or_make_benchmark(args.benchmark)
         if args.trajectories is not None:

@@ -1,0 +1,343 @@
+"""The R-S baseline task: an A1 follows random velocity commands on static rough terrain.
+
+Trained with random pushes and the robot part of the moving-platform domain randomization,
+never on a moving platform; the benchmark runs it with a zero command. Same step loop
+(`BaseEnv`), conventions and observation names as `MovingPlatformEnv`, so the same actor
+consumes it.
+
+Observation groups (TensorDict, float32):
+- `policy`        o (44): [accelerometer_b (3), gyro_b (3), roll & pitch (2), q - q_nominal (12),
+                  q_dot (12), a_{t-1} (12)].
+- `history`       o^H (H, 44): past observations, newest first; filled with o_0 at reset.
+- `priv_explicit` x_exp (13): [foot contacts (4), v_body_b (3), 6 zeros (static ground: the
+                  "platform" velocities of the moving-platform task are 0)].
+- `priv_implicit` x_imp (29): [trunk mass, CoM shift (3), foot friction, Kp (12), Kd (12)].
+- `command`       (3): [v_x (m/s), v_y (m/s), w_z (rad/s)], body frame.
+- `critic`        (93): [o, x_exp, x_imp, command, trunk height above the ground under it (1),
+                  roll, pitch, yaw (3)].
+
+Commands are resampled every `commands.resample_s` and at reset; a share
+`zero_command_fraction` is exactly zero. Pushes add a random horizontal velocity
+(|dv| uniform in [0, max_mps], uniform direction) to the trunk every U(interval_s) seconds,
+at the start of a step, before physics. Episodes end on a fall (trunk/hip/thigh/calf contact
+or |roll|, |pitch| > max_tilt_rad), or at `episode_length_s` (a truncation).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from tensordict import TensorDict
+
+from lasmp.config import RoughStaticCfg, build_env_cfg
+from lasmp.envs.backends.cpu import CpuBatchSim
+from lasmp.envs.base_env import BaseEnv
+from lasmp.envs.moving_platform.domain_rand import Intrinsics, nominal_intrinsics, sample_intrinsics
+from lasmp.envs.moving_platform.rewards import RewardManager
+from lasmp.envs.rotations import euler_zyx_from_mat, quat_to_mat, rotate_inv, yaw_quat
+from lasmp.envs.rough_static import rewards as rw
+from lasmp.envs.rough_static.terrain import build_model
+from lasmp.robots import a1
+
+OBS_DIM = 44
+X_EXP_DIM = 13
+X_IMP_DIM = 29
+SPAWN_FOOTPRINT_M = 0.4  # half-side of the square under the robot searched for the highest ground
+
+
+def _t(x: np.ndarray, device) -> torch.Tensor:
+    return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32)).to(device)
+
+
+class RobotIntrinsicsWriter:
+    """The robot part of `IntrinsicsWriter` (that one also needs the platform's actuators)."""
+
+    def __init__(self, sim: CpuBatchSim):
+        m = sim.model
+        self._trunk = m.body(a1.TRUNK_BODY_NAME).id
+        self._trunk_ipos0 = m.body_ipos[self._trunk].copy()
+        self._feet = np.array([m.geom(name).id for name in a1.FOOT_NAMES])
+        self._joint_act = np.array([m.actuator(name).id for name in a1.JOINT_NAMES])
+        self._body_mass = sim.expand("body_mass")
+        self._body_ipos = sim.expand("body_ipos")
+        self._geom_friction = sim.expand("geom_friction")
+        self._gainprm = sim.expand("actuator_gainprm")
+        self._biasprm = sim.expand("actuator_biasprm")
+
+    def write(self, ids: np.ndarray, p: Intrinsics) -> None:
+        ix = np.ix_(ids, self._joint_act)
+        self._body_mass[ids, self._trunk] = p.trunk_mass_kg
+        self._body_ipos[ids, self._trunk] = self._trunk_ipos0 + p.com_shift_m
+        self._geom_friction[np.ix_(ids, self._feet, [0])] = p.foot_friction[:, None, None]
+        self._gainprm[ix + (0,)] = p.joint_kp  # force = kp * ctrl - kp * q - kd * q_dot
+        self._biasprm[ix + (1,)] = -p.joint_kp
+        self._biasprm[ix + (2,)] = -p.joint_kd
+
+
+@dataclass
+class RobotReadout:
+    p_body_w: np.ndarray  # (n, 3) trunk origin, m
+    phi_body_w: np.ndarray  # (n, 3) roll, pitch, yaw (ZYX), rad
+    gravity_b: np.ndarray  # (n, 3) unit gravity direction, body frame
+    v_body_b: np.ndarray  # (n, 3) m/s
+    omega_body_b: np.ndarray  # (n, 3) rad/s
+    acc_imu_b: np.ndarray  # (n, 3) m/s²
+    gyro_b: np.ndarray  # (n, 3) rad/s
+    q: np.ndarray  # (n, 12) rad
+    q_dot: np.ndarray  # (n, 12) rad/s
+    tau: np.ndarray  # (n, 12) N·m
+    foot_contact: np.ndarray  # (n, 4) bool
+    body_collision: np.ndarray  # (n,) bool
+
+
+class RoughStaticEnv(BaseEnv):
+    def __init__(self, cfg: RoughStaticCfg | dict | None = None, device="cpu"):
+        if not isinstance(cfg, RoughStaticCfg):
+            cfg = build_env_cfg(cfg, schema=RoughStaticCfg)
+        else:
+            cfg.validate()
+        model, self.terrain = build_model(cfg.terrain, cfg.sim)
+        sim = CpuBatchSim(model, cfg.num_envs, cfg.sim.num_threads)
+        dt_s = cfg.sim.dt_s * cfg.sim.decimation
+        super().__init__(cfg, sim, 12, int(round(cfg.episode_length_s / dt_s)), device)
+        n = self.num_envs
+        root = model.joint(a1.ROOT_JOINT_NAME)
+        self.root_qpos, self.root_qvel = int(root.qposadr[0]), int(root.dofadr[0])
+        self.joint_qpos = np.array([model.joint(j).qposadr[0] for j in a1.JOINT_NAMES])
+        self.joint_qvel = np.array([model.joint(j).dofadr[0] for j in a1.JOINT_NAMES])
+        self.joint_act = np.array([model.actuator(j).id for j in a1.JOINT_NAMES])
+
+        def sens(name):
+            s = model.sensor(name)
+            return int(s.adr[0])
+
+        self.s_acc, self.s_gyro = sens("imu_acc"), sens("imu_gyro")
+        self.s_foot = np.array([sens(f"{leg}_foot_contact") for leg in a1.LEG_NAMES])  # found, then force
+        self.s_collision = np.array([sens(f"{b}_collision") for b in a1.NON_FOOT_COLLISION_GEOMS])
+
+        self.writer = RobotIntrinsicsWriter(sim)
+        self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.domain_rand.train.platform_kd_factor[0])
+        self.q_nominal = np.asarray(a1.Q_NOMINAL_RAD)
+        self.trunk_height_m = a1.nominal_trunk_height_m(model)
+        rc = cfg.rewards
+        self.rewards = RewardManager(
+            rc.weights, rw.RoughRewardParams(rc.tracking_sigma, rc.air_time_target_s), n, registry=rw.REWARD_TERMS
+        )
+
+        self.command = np.zeros((n, 3))
+        self.command_time_left_s = np.zeros(n)
+        self.push_time_left_s = np.zeros(n)
+        self.pushed = np.zeros(n, dtype=bool)  # envs pushed at the start of the last step
+        self.push_dv_mps = np.zeros((n, 2))  # their added world-frame xy velocity
+        self.action = np.zeros((n, 12))
+        self.action_prev = np.zeros((n, 12))
+        self.q_dot_prev = np.zeros((n, 12))
+        self.contact_prev = np.zeros((n, 4), dtype=bool)
+        self.t_air_s = np.zeros((n, 4))
+        self.history = torch.zeros(n, cfg.observations.history_length, OBS_DIM, device=self.device)
+        self.readout: RobotReadout | None = None
+        self._fresh: np.ndarray | None = None
+        self.last_state: rw.RoughStepState | None = None
+
+    # -- state ---------------------------------------------------------------------------------
+    def read(self) -> RobotReadout:
+        qpos, qvel, sd = self.sim.qpos, self.sim.qvel, self.sim.sensordata
+        quat = qpos[:, self.root_qpos + 3 : self.root_qpos + 7]
+        r_wb = quat_to_mat(quat / np.linalg.norm(quat, axis=1, keepdims=True))
+        contact = sd[:, self.s_foot] > 0
+        return RobotReadout(
+            p_body_w=qpos[:, self.root_qpos : self.root_qpos + 3].copy(),
+            phi_body_w=euler_zyx_from_mat(r_wb),
+            gravity_b=-r_wb[:, 2, :],  # world -z in the body frame: R^T (0, 0, -1)
+            v_body_b=rotate_inv(r_wb, qvel[:, self.root_qvel : self.root_qvel + 3]),
+            omega_body_b=qvel[:, self.root_qvel + 3 : self.root_qvel + 6].copy(),
+            acc_imu_b=sd[:, self.s_acc : self.s_acc + 3].copy(),
+            gyro_b=sd[:, self.s_gyro : self.s_gyro + 3].copy(),
+            q=qpos[:, self.joint_qpos],
+            q_dot=qvel[:, self.joint_qvel],
+            tau=self.sim.actuator_force[:, self.joint_act].copy(),
+            foot_contact=contact,
+            body_collision=(sd[:, self.s_collision] > 0).any(axis=1),
+        )
+
+    # -- commands and pushes -------------------------------------------------------------------
+    def sample_commands(self, n: int) -> np.ndarray:
+        c = self.cfg.commands
+        cmd = np.stack(
+            [self.rng.uniform(*r, size=n) for r in (c.lin_vel_x_mps, c.lin_vel_y_mps, c.ang_vel_z_rad_s)], axis=1
+        )
+        cmd[self.rng.random(n) < c.zero_command_fraction] = 0.0
+        return cmd
+
+    def _resample_commands(self, ids: np.ndarray) -> None:
+        self.command[ids] = self.sample_commands(len(ids))
+        self.command_time_left_s[ids] = self.cfg.commands.resample_s
+
+    def push(self, ids: np.ndarray) -> np.ndarray:
+        """Add a random horizontal velocity to the trunks of envs `ids`; return it (len(ids), 2), m/s."""
+        pc = self.cfg.pushes
+        angle = self.rng.uniform(-np.pi, np.pi, size=len(ids))
+        speed = self.rng.uniform(0.0, pc.max_mps, size=len(ids))
+        dv = speed[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+        self.sim.qvel[ids, self.root_qvel : self.root_qvel + 2] += dv  # free joint: world-frame linear velocity
+        self.sim.batch.forward(ids)  # derived quantities follow the new state
+        self.push_time_left_s[ids] = self.rng.uniform(*pc.interval_s, size=len(ids))
+        return dv
+
+    # -- control -------------------------------------------------------------------------------
+    def _apply_actions(self, actions: np.ndarray) -> None:
+        self.action_prev[:] = self.action
+        self.action[:] = actions
+        self.sim.ctrl[:, self.joint_act] = self.q_nominal + self.cfg.control.action_scale * actions
+        self.pushed[:] = False
+        if self.cfg.pushes.enabled:
+            due = np.flatnonzero(self.push_time_left_s <= 0.0)
+            if len(due):
+                self.push_dv_mps[due] = self.push(due)
+                self.pushed[due] = True
+            self.push_time_left_s -= self.dt_s
+
+    # -- evaluation ----------------------------------------------------------------------------
+    def _evaluate(self, faulted: np.ndarray):
+        r = self.read()
+        faulted |= (np.abs(r.q_dot) > self.cfg.termination.max_joint_vel_rad_s).any(axis=1)
+        if faulted.any():  # keep NaNs of diverged envs out of rewards and logs
+            for name, value in vars(r).items():
+                if value.dtype.kind == "f":
+                    setattr(r, name, np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0))
+        self.readout = r
+        tilted = (np.abs(r.phi_body_w[:, :2]) > self.cfg.termination.max_tilt_rad).any(axis=1)
+        fell = r.body_collision | tilted
+        dt = self.dt_s
+        contact = r.foot_contact
+        touchdown = contact & ~self.contact_prev
+        self.t_air_s += dt * ~contact
+        t_air_ended = np.where(touchdown, self.t_air_s, 0.0)
+        self.t_air_s[contact] = 0.0
+        self.contact_prev = contact
+        dev = self.device
+        state = rw.RoughStepState(
+            dt_s=dt,
+            v_body_b=_t(r.v_body_b, dev),
+            omega_body_b=_t(r.omega_body_b, dev),
+            command=_t(self.command, dev),
+            gravity_b=_t(r.gravity_b, dev),
+            q_dev=_t(r.q - self.q_nominal, dev),
+            tau=_t(r.tau, dev),
+            q_ddot=_t((r.q_dot - self.q_dot_prev) / dt, dev),
+            action=_t(self.action, dev),
+            action_prev=_t(self.action_prev, dev),
+            body_contact=torch.from_numpy(r.body_collision.copy()),
+            touchdown=torch.from_numpy(touchdown),
+            t_air_s=_t(t_air_ended, dev),
+        )
+        self.last_state = state
+        reward = self.rewards.compute(state)
+        self.q_dot_prev[:] = r.q_dot
+        # commands run on their own clock; they are resampled after the reward used the old one
+        self.command_time_left_s -= dt
+        due = np.flatnonzero(self.command_time_left_s <= 1e-9)
+        if len(due):
+            self._resample_commands(due)
+        log = {
+            "Termination/body_contact": float(r.body_collision.sum()),
+            "Termination/tilt": float(tilted.sum()),
+        }
+        return reward, fell, log
+
+    # -- resets --------------------------------------------------------------------------------
+    def _reset_envs(self, ids: np.ndarray, terminated: np.ndarray, timed_out: np.ndarray) -> dict:
+        log = {}
+        finished = terminated | timed_out
+        if finished.any():
+            done = ids[finished]
+            for name, value in self.rewards.reset(torch.from_numpy(done)).items():
+                log[f"Episode_Reward/{name}"] = value
+            log["Episode/timeout_rate"] = float(timed_out[finished].mean())
+            log["Episode/length_s"] = (
+                float(self.episode_length_buf[torch.from_numpy(done)].float().mean()) * self.dt_s
+            )
+        n = len(ids)
+        dr = self.cfg.domain_rand
+        if dr.enabled:
+            params = sample_intrinsics(n, dr.ranges, self.rng)
+        else:
+            params = nominal_intrinsics(n, dr.train.platform_kd_factor[0])
+        for name, value in vars(params).items():
+            getattr(self.intrinsics, name)[ids] = value
+        self.writer.write(ids, params)
+
+        tc = self.cfg.terrain
+        half = np.array([self.terrain.half_x_m, self.terrain.half_y_m]) - tc.spawn_margin_m
+        xy = self.rng.uniform(-half, half, size=(n, 2))
+        yaw = self.rng.uniform(*self.cfg.init_state.yaw_range_rad, size=n)
+        ground = self.terrain.max_height_near(xy, SPAWN_FOOTPRINT_M)
+        m = self.sim.model
+        qpos = np.tile(m.qpos0, (n, 1))
+        qpos[:, self.root_qpos : self.root_qpos + 2] = xy
+        qpos[:, self.root_qpos + 2] = ground + self.trunk_height_m + self.cfg.init_state.foot_clearance_m
+        qpos[:, self.root_qpos + 3 : self.root_qpos + 7] = yaw_quat(yaw)
+        qpos[:, self.joint_qpos] = self.q_nominal
+        ctrl = np.zeros((n, m.nu))
+        ctrl[:, self.joint_act] = self.q_nominal
+        self.sim.reset(ids, qpos, np.zeros((n, m.nv)), ctrl, set_const=True)
+
+        self._resample_commands(ids)
+        self.push_time_left_s[ids] = self.rng.uniform(*self.cfg.pushes.interval_s, size=n)
+        self.action[ids] = 0.0
+        self.action_prev[ids] = 0.0
+        self.q_dot_prev[ids] = 0.0
+        self.contact_prev[ids] = False
+        self.t_air_s[ids] = 0.0
+        self._fresh = ids
+        return log
+
+    # -- observations --------------------------------------------------------------------------
+    def _observations(self) -> TensorDict:
+        if self.readout is None or self._fresh is not None:
+            self.readout = self.read()  # reset envs: their new state (cheap: one pass over arrays)
+        r = self.readout
+        dev = self.device
+        n = self.num_envs
+        o = np.concatenate(
+            [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - self.q_nominal, r.q_dot, self.action], axis=1
+        )
+        x_exp = np.concatenate([r.foot_contact, r.v_body_b, np.zeros((n, 6))], axis=1)
+        x_imp = self.intrinsics.x_imp()
+        height = r.p_body_w[:, 2] - self.terrain.height_at(r.p_body_w[:, :2])
+        critic = np.concatenate([o, x_exp, x_imp, self.command, height[:, None], r.phi_body_w], axis=1)
+        self.nonfinite_obs_values = 0
+        if not np.isfinite(critic).all():  # critic holds every other group: one check for all
+            self.nonfinite_obs_values = int((~np.isfinite(critic)).sum())
+            o, x_exp, x_imp, critic = (
+                np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0) for x in (o, x_exp, x_imp, critic)
+            )
+        clip = self.cfg.observations.clip
+        o_t = _t(np.clip(o, -clip, clip), dev)
+        history = self.history
+        if self._fresh is not None:
+            fresh = torch.from_numpy(self._fresh)
+            history[fresh] = o_t[fresh].unsqueeze(1)
+            self._fresh = None
+        self.history = torch.cat([o_t.unsqueeze(1), history[:, :-1]], dim=1)
+        return TensorDict(
+            {
+                "policy": o_t,
+                "history": history,
+                "priv_explicit": _t(x_exp, dev),
+                "priv_implicit": _t(x_imp, dev),
+                "command": _t(self.command, dev),
+                "critic": _t(np.clip(critic, -clip, clip), dev),
+            },
+            batch_size=[n],
+            device=dev,
+        )
+
+    # -- checkpoint state (nothing: no curriculum) ---------------------------------------------
+    def state_dict(self) -> dict:
+        return {}
+
+    def load_state_dict(self, d: dict) -> None:
+        pass

@@ -294,9 +294,7 @@ class TerrainCfg:
 
     def validate(self, p: str):
         if len(self.size_m) != 2 or min(self.size_m) <= 2 * self.spawn_margin_m:
-            raise ConfigError(
-                f"{p}.size_m must be two lengths > 2 * spawn_margin_m, got {list(self.size_m)}"
-            )
+            raise ConfigError(f"{p}.size_m must be two lengths > 2 * spawn_margin_m, got {list(self.size_m)}")
         for name in ("resolution_m", "tile_m", "friction"):
             _positive(f"{p}.{name}", getattr(self, name))
         if self.resolution_m > 0.5:
@@ -326,7 +324,9 @@ class CommandsCfg:
     def validate(self, p: str):
         _positive(f"{p}.resample_s", self.resample_s)
         if not 0.0 <= self.zero_command_fraction <= 1.0:
-            raise ConfigError(f"{p}.zero_command_fraction must be in [0, 1], got {self.zero_command_fraction}")
+            raise ConfigError(
+                f"{p}.zero_command_fraction must be in [0, 1], got {self.zero_command_fraction}"
+            )
         _range(f"{p}.lin_vel_x_mps", self.lin_vel_x_mps, -5.0, 5.0)
         _range(f"{p}.lin_vel_y_mps", self.lin_vel_y_mps, -5.0, 5.0)
         _range(f"{p}.ang_vel_z_rad_s", self.ang_vel_z_rad_s, -5.0, 5.0)

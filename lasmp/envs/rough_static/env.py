@@ -123,7 +123,10 @@ class RoughStaticEnv(BaseEnv):
         self.trunk_height_m = a1.nominal_trunk_height_m(model)
         rc = cfg.rewards
         self.rewards = RewardManager(
-            rc.weights, rw.RoughRewardParams(rc.tracking_sigma, rc.air_time_target_s), n, registry=rw.REWARD_TERMS
+            rc.weights,
+            rw.RoughRewardParams(rc.tracking_sigma, rc.air_time_target_s),
+            n,
+            registry=rw.REWARD_TERMS,
         )
 
         self.command = np.zeros((n, 3))
@@ -166,7 +169,8 @@ class RoughStaticEnv(BaseEnv):
     def sample_commands(self, n: int) -> np.ndarray:
         c = self.cfg.commands
         cmd = np.stack(
-            [self.rng.uniform(*r, size=n) for r in (c.lin_vel_x_mps, c.lin_vel_y_mps, c.ang_vel_z_rad_s)], axis=1
+            [self.rng.uniform(*r, size=n) for r in (c.lin_vel_x_mps, c.lin_vel_y_mps, c.ang_vel_z_rad_s)],
+            axis=1,
         )
         cmd[self.rng.random(n) < c.zero_command_fraction] = 0.0
         return cmd
@@ -181,7 +185,8 @@ class RoughStaticEnv(BaseEnv):
         angle = self.rng.uniform(-np.pi, np.pi, size=len(ids))
         speed = self.rng.uniform(0.0, pc.max_mps, size=len(ids))
         dv = speed[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-        self.sim.qvel[ids, self.root_qvel : self.root_qvel + 2] += dv  # free joint: world-frame linear velocity
+        # the free joint's linear velocity is in the world frame
+        self.sim.qvel[ids, self.root_qvel : self.root_qvel + 2] += dv
         self.sim.batch.forward(ids)  # derived quantities follow the new state
         self.push_time_left_s[ids] = self.rng.uniform(*pc.interval_s, size=len(ids))
         return dv

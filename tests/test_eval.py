@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from omegaconf import OmegaConf
 
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
@@ -169,3 +170,26 @@ def test_oracle_command_points_to_the_platform_centre_in_the_heading_frame():
     cmd = oracle_command(env).numpy()
     assert np.allclose(cmd[0], [0.0, 0.5, 0.0], atol=1e-6)
     assert np.allclose(cmd[1], [0.0, 1.0, 0.0], atol=1e-6)
+
+
+def test_evaluate_rs_controllers_end_to_end(tmp_path):
+    from lasmp.train import to_train_cfg, train
+
+    cfg = to_train_cfg(OmegaConf.create({
+        "task": "rough_static", "env": {"num_envs": 4}, "torch_threads": 1,
+        "policy": {"name": "rs", "use_alignment": False, "explicit": "no_platform", "command_input": True,
+                   "actor_hidden_dims": [32, 32, 32]},
+        "runner": {"max_iterations": 1, "log_dir": str(tmp_path / "rs")},
+    }))  # fmt: skip
+    train(cfg)
+    bench_path = tmp_path / "bench.npz"
+    bm.save(bench_path, bm.generate(num_trajectories=8, num_robots=4, seed=0))
+    for controller in ("rs", "rs_oracle"):
+        out = run_evaluate("--controller", controller, "--checkpoint", str(tmp_path / "rs"), "--benchmark",
+                           str(bench_path), "--num-trajectories", "4", "--out", str(tmp_path / controller),
+                           cwd=tmp_path)  # fmt: skip
+        assert out.returncode == 0, out.stderr[-2000:]
+        assert json.loads((tmp_path / controller / "metrics.json").read_text())["num_episodes"] == 4
+    # a LAS-MP evaluation refuses the R-S checkpoint with a clear message
+    out = run_evaluate("--checkpoint", str(tmp_path / "rs"), "--benchmark", str(bench_path), cwd=tmp_path)
+    assert out.returncode == 2 and "moving_platform" in out.stderr

@@ -222,3 +222,17 @@ def test_train_cli_end_to_end_then_resume(tmp_path):
 
     out = run_cli(*common, f"resume={tmp_path / 'nope.pt'}", cwd=tmp_path)
     assert out.returncode != 0 and "nope.pt does not exist" in out.stderr
+
+
+def test_rough_static_task_trains_the_rs_policy(tmp_path):
+    with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
+        cfg = compose("config", overrides=["task=rough_static", "env.num_envs=4", "runner.max_iterations=1",
+                                           f"runner.log_dir={tmp_path}", "torch_threads=1",
+                                           "policy.actor_hidden_dims=[32,32,32]"])  # fmt: skip
+    assert cfg.policy.name == "rs"  # the task picks its policy
+    runner = train(cfg)
+    actor = runner.alg.get_policy()
+    assert actor.command_input and actor.num_explicit == 7 and not actor.use_alignment
+    assert actor.backbone_input_dim == 44 + 7 + 3 + 16
+    data = read_checkpoint(tmp_path)
+    assert data["config"]["task"] == "rough_static" and "command" in data["obs_layout"]

@@ -115,13 +115,16 @@ class OneLineLogger(Logger):
             self.writer.add_scalar("Train/mean_episode_length", statistics.fmean(self.lenbuffer), it)
         done = it + 1 - start_it
         eta = datetime.timedelta(seconds=int(self.tot_time / done * (total_it - start_it - done)))
-        print(
-            f"it {it + 1}/{total_it} | {fps:,.0f} steps/s | reward {reward:8.2f} | "
-            f"success {extras.get('Episode/success_rate', float('nan')):.2f} | "
-            f"level {extras.get('Curriculum/level', float('nan')):.0f} | "
-            f"L_exp {loss_dict.get('roa_exp', float('nan')):.4f} | ETA {eta}",
-            flush=True,
-        )
+        fields = [f"it {it + 1}/{total_it}", f"{fps:,.0f} steps/s", f"reward {reward:8.2f}"]
+        for key, label, fmt in (
+            ("Episode/success_rate", "success", ".2f"),
+            ("Curriculum/level", "level", ".0f"),
+        ):
+            if key in extras:
+                fields.append(f"{label} {extras[key]:{fmt}}")
+        if "roa_exp" in loss_dict:
+            fields.append(f"L_exp {loss_dict['roa_exp']:.4f}")
+        print(" | ".join(fields + [f"ETA {eta}"]), flush=True)
 
 
 class LasmpRunner(OnPolicyRunner):

@@ -24,6 +24,13 @@ from tensordict import TensorDict
 from lasmp.config import BaseEnvCfg
 from lasmp.envs.backends.cpu import CpuBatchSim
 
+OBS_DIM = 44  # o: accelerometer (3), gyro (3), roll & pitch (2), q - q_nominal (12), q_dot (12), a_{t-1} (12)
+
+
+def to_tensor(x: np.ndarray, device) -> torch.Tensor:
+    """float32 torch tensor of a numpy array, on `device`."""
+    return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32)).to(device)
+
 
 class BaseEnv(VecEnv):
     def __init__(
@@ -41,6 +48,11 @@ class BaseEnv(VecEnv):
         self.fault_count = 0  # faulted envs since construction
         self._obs: TensorDict | None = None
         self.nonfinite_obs_values = 0
+        # o^H: past observations, newest first; envs in `_fresh` (just reset) get theirs filled with o_0
+        self.history = torch.zeros(
+            self.num_envs, cfg.observations.history_length, OBS_DIM, device=self.device
+        )
+        self._fresh: np.ndarray | None = None
 
     # -- the task fills these ----------------------------------------------------------------
     @abstractmethod
@@ -57,10 +69,8 @@ class BaseEnv(VecEnv):
 
     @abstractmethod
     def _observations(self) -> TensorDict:
-        """Observation groups of all envs (tensors on self.device, float32), every value finite.
-
-        Sets `self.nonfinite_obs_values` to the number of non-finite values it replaced by 0.
-        """
+        """Observation groups of all envs (tensors on self.device, float32), every value finite:
+        build the arrays and hand them to `_package_observations`."""
 
     # -- the contract --------------------------------------------------------------------------
     def reset(self) -> tuple[TensorDict, dict]:
@@ -103,6 +113,29 @@ class BaseEnv(VecEnv):
         self._obs = self._guarded_observations(log)
         extras = {"time_outs": torch.from_numpy(timed_out).to(self.device), "log": log}
         return self._obs, reward.to(self.device), torch.from_numpy(done).to(self.device), extras
+
+    def _package_observations(self, o: np.ndarray, groups: dict[str, np.ndarray]) -> TensorDict:
+        """The TensorDict of `policy` (o), `history` and the other groups: non-finite values replaced
+        by 0 and counted (`nonfinite_obs_values`), every value clipped to +-observations.clip."""
+        arrays = {"policy": o, **groups}
+        bad = sum(int(a.size - np.count_nonzero(np.isfinite(a))) for a in arrays.values())
+        self.nonfinite_obs_values = bad
+        clip = self.cfg.observations.clip
+        tensors = {}
+        for key, value in arrays.items():
+            if bad:
+                value = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
+            tensors[key] = to_tensor(np.clip(value, -clip, clip), self.device)
+        o_t = tensors["policy"]
+        history = self.history
+        if self._fresh is not None:
+            fresh = torch.from_numpy(self._fresh)
+            history[fresh] = o_t[fresh].unsqueeze(1)
+            self._fresh = None
+        # the next step's history starts with this o (a new tensor: the one handed out stays as is)
+        self.history = torch.cat([o_t.unsqueeze(1), history[:, :-1]], dim=1)
+        tensors["history"] = history
+        return TensorDict(tensors, batch_size=[self.num_envs], device=self.device)
 
     def _guarded_observations(self, log: dict) -> TensorDict:
         obs = self._observations()

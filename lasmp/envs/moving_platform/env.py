@@ -21,7 +21,7 @@ from tensordict import TensorDict
 from lasmp.config import MovingPlatformCfg, build_env_cfg
 from lasmp.envs import trajectories as trj
 from lasmp.envs.backends.cpu import CpuBatchSim
-from lasmp.envs.base_env import BaseEnv
+from lasmp.envs.base_env import BaseEnv, to_tensor
 from lasmp.envs.curriculum import WaypointCurriculum
 from lasmp.envs.moving_platform.domain_rand import (
     Intrinsics,
@@ -35,14 +35,6 @@ from lasmp.envs.moving_platform.state import StepState
 from lasmp.envs.rotations import yaw_quat
 from lasmp.envs.scene import PLATFORM_JOINTS, POSE_TO_JOINT, build_model, platform_gains, platform_top_z_m
 from lasmp.robots import a1
-
-OBS_DIM = 44
-X_EXP_DIM = 13
-X_IMP_DIM = 29
-
-
-def _t(x: np.ndarray, device) -> torch.Tensor:
-    return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32)).to(device)
 
 
 class MovingPlatformEnv(BaseEnv):
@@ -101,10 +93,8 @@ class MovingPlatformEnv(BaseEnv):
         self.contact_prev = np.zeros((n, 4), dtype=bool)
         self.t_air_s = np.zeros((n, 4))
         self.t_contact_s = np.zeros((n, 4))
-        self.history = torch.zeros(n, cfg.observations.history_length, OBS_DIM, device=self.device)
         self.nonfinite_obs_values = 0  # replaced by 0 in the last observation (a fault symptom)
         self.readout: Readout | None = None
-        self._fresh: np.ndarray | None = None  # envs reset since the last observation
         # Hooks for evaluation: `episode_source.next_episodes(ids)` -> (trajectories, levels,
         # Intrinsics) replaces the random draws at reset; `on_step(readout, collision)` sees every
         # step's state before the finished envs are reset.
@@ -163,26 +153,26 @@ class MovingPlatformEnv(BaseEnv):
         dev = self.device
         state = StepState(
             dt_s=dt,
-            p_body_p=_t(r.p_body_p, dev),
-            phi_body_w=_t(r.phi_body_w, dev),
-            v_body_b=_t(r.v_body_b, dev),
-            omega_body_b=_t(r.omega_body_b, dev),
-            v_plf_b=_t(r.v_plf_b, dev),
-            omega_plf_b=_t(r.omega_plf_b, dev),
-            u_aln=_t(r.u_aln, dev),
-            action=_t(self.action, dev),
-            action_prev=_t(self.action_prev, dev),
-            tau=_t(r.tau, dev),
-            tau_prev=_t(self.tau_prev, dev),
-            q_dot=_t(r.q_dot, dev),
-            q_ddot=_t((r.q_dot - self.q_dot_prev) / dt, dev),
-            f_feet_w=_t(r.f_feet_w, dev),
+            p_body_p=to_tensor(r.p_body_p, dev),
+            phi_body_w=to_tensor(r.phi_body_w, dev),
+            v_body_b=to_tensor(r.v_body_b, dev),
+            omega_body_b=to_tensor(r.omega_body_b, dev),
+            v_plf_b=to_tensor(r.v_plf_b, dev),
+            omega_plf_b=to_tensor(r.omega_plf_b, dev),
+            u_aln=to_tensor(r.u_aln, dev),
+            action=to_tensor(self.action, dev),
+            action_prev=to_tensor(self.action_prev, dev),
+            tau=to_tensor(r.tau, dev),
+            tau_prev=to_tensor(self.tau_prev, dev),
+            q_dot=to_tensor(r.q_dot, dev),
+            q_ddot=to_tensor((r.q_dot - self.q_dot_prev) / dt, dev),
+            f_feet_w=to_tensor(r.f_feet_w, dev),
             contact=torch.from_numpy(contact),
             touchdown=torch.from_numpy(touchdown),
             liftoff=torch.from_numpy(liftoff),
-            t_air_s=_t(t_air_ended, dev),
-            t_contact_s=_t(t_contact_ended, dev),
-            v_slip_p=_t(r.v_slip_p, dev),
+            t_air_s=to_tensor(t_air_ended, dev),
+            t_contact_s=to_tensor(t_contact_ended, dev),
+            v_slip_p=to_tensor(r.v_slip_p, dev),
             collision=torch.from_numpy(collision),
         )
         self.last_state = state
@@ -279,42 +269,14 @@ class MovingPlatformEnv(BaseEnv):
         elif self._fresh is not None:
             update_rows(self.readout, self._fresh, read(self.sim, self.index, self._fresh))
         r = self.readout
-        dev = self.device
         o = np.concatenate(
             [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - self.q_nominal, r.q_dot, self.action], axis=1
         )
         x_exp = np.concatenate([r.foot_contact, r.v_body_b, r.v_plf_b, r.omega_plf_b], axis=1)
         x_imp = self.intrinsics.x_imp()
         critic = np.concatenate([o, x_exp, x_imp, r.u_aln, r.p_body_p, r.phi_body_w], axis=1)
-        self.nonfinite_obs_values = 0
-        if not np.isfinite(critic).all():  # critic holds every other group: one check for all
-            self.nonfinite_obs_values = int((~np.isfinite(critic)).sum())
-            o, x_exp, x_imp, critic = (
-                np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0) for x in (o, x_exp, x_imp, critic)
-            )
-        u_aln = critic[:, OBS_DIM + X_EXP_DIM + X_IMP_DIM : OBS_DIM + X_EXP_DIM + X_IMP_DIM + 3]
-        clip = self.cfg.observations.clip
-        o_t = _t(np.clip(o, -clip, clip), dev)
-        # history holds the past observations, newest first; fresh envs see their first o
-        history = self.history
-        if self._fresh is not None:
-            fresh = torch.from_numpy(self._fresh)
-            history[fresh] = o_t[fresh].unsqueeze(1)
-            self._fresh = None
-        # the next step's history starts with this o (a new tensor: the one handed out stays as is)
-        self.history = torch.cat([o_t.unsqueeze(1), history[:, :-1]], dim=1)
-        return TensorDict(
-            {
-                "policy": o_t,
-                "history": history,
-                "priv_explicit": _t(x_exp, dev),
-                "priv_implicit": _t(x_imp, dev),
-                "alignment": _t(np.clip(u_aln, -clip, clip), dev),
-                "critic": _t(np.clip(critic, -clip, clip), dev),
-            },
-            batch_size=[self.num_envs],
-            device=dev,
-        )
+        groups = {"priv_explicit": x_exp, "priv_implicit": x_imp, "alignment": r.u_aln, "critic": critic}
+        return self._package_observations(o, groups)
 
     # -- checkpoint state ----------------------------------------------------------------------
     def state_dict(self) -> dict:

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import torch
 
 from lasmp.envs.moving_platform.state import StepState
+from lasmp.envs.reward_registry import make_registry, squared_norm
 
 
 @dataclass
@@ -49,19 +50,10 @@ class RewardParams:
 
 
 RewardFn = Callable[[StepState, RewardParams], torch.Tensor]
-REWARD_TERMS: dict[str, RewardFn] = {}
+REWARD_TERMS, reward_term = make_registry()  # name -> RewardFn
 
 
-def reward_term(fn: RewardFn) -> RewardFn:
-    """Register `fn` under its function name."""
-    if fn.__name__ in REWARD_TERMS:
-        raise ValueError(f"reward term {fn.__name__!r} registered twice")
-    REWARD_TERMS[fn.__name__] = fn
-    return fn
-
-
-def _sq(x: torch.Tensor) -> torch.Tensor:
-    return torch.sum(torch.square(x), dim=-1)
+_sq = squared_norm
 
 
 # ---- task terms -------------------------------------------------------------------------

@@ -33,7 +33,7 @@ from tensordict import TensorDict
 
 from lasmp.config import RoughStaticCfg, build_env_cfg
 from lasmp.envs.backends.cpu import CpuBatchSim
-from lasmp.envs.base_env import BaseEnv
+from lasmp.envs.base_env import BaseEnv, to_tensor
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, nominal_intrinsics, sample_intrinsics
 from lasmp.envs.moving_platform.rewards import RewardManager
 from lasmp.envs.rotations import euler_zyx_from_mat, quat_to_mat, rotate_inv, yaw_quat
@@ -41,14 +41,7 @@ from lasmp.envs.rough_static import rewards as rw
 from lasmp.envs.rough_static.terrain import build_model
 from lasmp.robots import a1
 
-OBS_DIM = 44
-X_EXP_DIM = 13
-X_IMP_DIM = 29
 SPAWN_FOOTPRINT_M = 0.4  # half-side of the square under the robot searched for the highest ground
-
-
-def _t(x: np.ndarray, device) -> torch.Tensor:
-    return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32)).to(device)
 
 
 class RobotIntrinsicsWriter:
@@ -139,9 +132,7 @@ class RoughStaticEnv(BaseEnv):
         self.q_dot_prev = np.zeros((n, 12))
         self.contact_prev = np.zeros((n, 4), dtype=bool)
         self.t_air_s = np.zeros((n, 4))
-        self.history = torch.zeros(n, cfg.observations.history_length, OBS_DIM, device=self.device)
         self.readout: RobotReadout | None = None
-        self._fresh: np.ndarray | None = None
         self.last_state: rw.RoughStepState | None = None
 
     # -- state ---------------------------------------------------------------------------------
@@ -225,18 +216,18 @@ class RoughStaticEnv(BaseEnv):
         dev = self.device
         state = rw.RoughStepState(
             dt_s=dt,
-            v_body_b=_t(r.v_body_b, dev),
-            omega_body_b=_t(r.omega_body_b, dev),
-            command=_t(self.command, dev),
-            gravity_b=_t(r.gravity_b, dev),
-            q_dev=_t(r.q - self.q_nominal, dev),
-            tau=_t(r.tau, dev),
-            q_ddot=_t((r.q_dot - self.q_dot_prev) / dt, dev),
-            action=_t(self.action, dev),
-            action_prev=_t(self.action_prev, dev),
+            v_body_b=to_tensor(r.v_body_b, dev),
+            omega_body_b=to_tensor(r.omega_body_b, dev),
+            command=to_tensor(self.command, dev),
+            gravity_b=to_tensor(r.gravity_b, dev),
+            q_dev=to_tensor(r.q - self.q_nominal, dev),
+            tau=to_tensor(r.tau, dev),
+            q_ddot=to_tensor((r.q_dot - self.q_dot_prev) / dt, dev),
+            action=to_tensor(self.action, dev),
+            action_prev=to_tensor(self.action_prev, dev),
             body_contact=torch.from_numpy(r.body_collision.copy()),
             touchdown=torch.from_numpy(touchdown),
-            t_air_s=_t(t_air_ended, dev),
+            t_air_s=to_tensor(t_air_ended, dev),
         )
         self.last_state = state
         reward = self.rewards.compute(state)
@@ -304,7 +295,6 @@ class RoughStaticEnv(BaseEnv):
         if self.readout is None or self._fresh is not None:
             self.readout = self.read()  # reset envs: their new state (cheap: one pass over arrays)
         r = self.readout
-        dev = self.device
         n = self.num_envs
         o = np.concatenate(
             [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - self.q_nominal, r.q_dot, self.action], axis=1
@@ -313,32 +303,8 @@ class RoughStaticEnv(BaseEnv):
         x_imp = self.intrinsics.x_imp()
         height = r.p_body_w[:, 2] - self.terrain.height_at(r.p_body_w[:, :2])
         critic = np.concatenate([o, x_exp, x_imp, self.command, height[:, None], r.phi_body_w], axis=1)
-        self.nonfinite_obs_values = 0
-        if not np.isfinite(critic).all():  # critic holds every other group: one check for all
-            self.nonfinite_obs_values = int((~np.isfinite(critic)).sum())
-            o, x_exp, x_imp, critic = (
-                np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0) for x in (o, x_exp, x_imp, critic)
-            )
-        clip = self.cfg.observations.clip
-        o_t = _t(np.clip(o, -clip, clip), dev)
-        history = self.history
-        if self._fresh is not None:
-            fresh = torch.from_numpy(self._fresh)
-            history[fresh] = o_t[fresh].unsqueeze(1)
-            self._fresh = None
-        self.history = torch.cat([o_t.unsqueeze(1), history[:, :-1]], dim=1)
-        return TensorDict(
-            {
-                "policy": o_t,
-                "history": history,
-                "priv_explicit": _t(x_exp, dev),
-                "priv_implicit": _t(x_imp, dev),
-                "command": _t(self.command, dev),
-                "critic": _t(np.clip(critic, -clip, clip), dev),
-            },
-            batch_size=[n],
-            device=dev,
-        )
+        groups = {"priv_explicit": x_exp, "priv_implicit": x_imp, "command": self.command, "critic": critic}
+        return self._package_observations(o, groups)
 
     # -- checkpoint state (nothing: no curriculum) ---------------------------------------------
     def state_dict(self) -> dict:

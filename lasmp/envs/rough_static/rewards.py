@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import torch
 
+from lasmp.envs.reward_registry import make_registry, squared_norm
+
 
 @dataclass
 class RoughRewardParams:
@@ -60,18 +62,10 @@ class RoughStepState:
 
 
 RoughRewardFn = Callable[[RoughStepState, RoughRewardParams], torch.Tensor]
-REWARD_TERMS: dict[str, RoughRewardFn] = {}
+REWARD_TERMS, reward_term = make_registry()  # name -> RoughRewardFn
 
 
-def reward_term(fn: RoughRewardFn) -> RoughRewardFn:
-    if fn.__name__ in REWARD_TERMS:
-        raise ValueError(f"reward term {fn.__name__!r} registered twice")
-    REWARD_TERMS[fn.__name__] = fn
-    return fn
-
-
-def _sq(x: torch.Tensor) -> torch.Tensor:
-    return torch.sum(torch.square(x), dim=-1)
+_sq = squared_norm
 
 
 def _moving(s: RoughStepState) -> torch.Tensor:

@@ -193,3 +193,24 @@ def test_evaluate_rs_controllers_end_to_end(tmp_path):
     # a LAS-MP evaluation refuses the R-S checkpoint with a clear message
     out = run_evaluate("--checkpoint", str(tmp_path / "rs"), "--benchmark", str(bench_path), cwd=tmp_path)
     assert out.returncode == 2 and "moving_platform" in out.stderr
+
+
+def test_evaluate_lasmp_checkpoint_reports_estimator_accuracy_and_plots(tmp_path):
+    from lasmp.train import to_train_cfg, train
+
+    cfg = to_train_cfg(OmegaConf.create({
+        "env": {"num_envs": 4}, "torch_threads": 1, "policy": {"actor_hidden_dims": [32, 32, 32]},
+        "runner": {"max_iterations": 1, "log_dir": str(tmp_path / "mp")},
+    }))  # fmt: skip
+    train(cfg)
+    bench_path = tmp_path / "bench.npz"
+    bm.save(bench_path, bm.generate(num_trajectories=8, num_robots=4, seed=0))
+    out = run_evaluate("--checkpoint", str(tmp_path / "mp"), "--benchmark", str(bench_path), "--num-trajectories",
+                       "6", "--batch-envs", "3", "--plot-estimates", "--out", str(tmp_path / "ev"), cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    result = json.loads((tmp_path / "ev" / "metrics.json").read_text())
+    est = result["estimator"]
+    assert len(est["x_exp_mean_abs_error"]) == 13 and est["l_imp_mean_l2_error"] > 0
+    assert est["samples"] >= 6
+    assert (tmp_path / "ev" / "estimates.png").stat().st_size > 10_000
+    assert 0 <= result["estimates_plot_episode"] < 3  # an episode of the first wave (3 envs)

@@ -150,8 +150,9 @@ def main(argv=None) -> int:
     out_dir = args.out or Path("eval") / (args.controller or Path(str(args.checkpoint)).name)
     if args.plot_estimates and policy is None:
         p.error("--plot-estimates needs --checkpoint (a policy with estimators)")
-    run = run_benchmark(env, controller, bench, args.num_trajectories, policy=policy,
-                        plot_episode=0 if args.plot_estimates else None)  # fmt: skip
+    run = run_benchmark(
+        env, controller, bench, args.num_trajectories, policy=policy, trace=args.plot_estimates
+    )
     episodes = run["episodes"]
     result = {
         "method": method,
@@ -167,5 +168,7 @@ def main(argv=None) -> int:
     write_results(out_dir, result)
     if args.plot_estimates and run.get("trace") is not None and len(policy.estimation_names):
         plot_estimates(run["trace"], policy.estimation_names, env.dt_s, out_dir / "estimates.png")
+        result["estimates_plot_episode"] = run["trace"]["episode"]
+        write_results(out_dir, result)
     print((out_dir / "metrics.md").read_text())
     return 0

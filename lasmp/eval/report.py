@@ -80,6 +80,7 @@ def plot_estimates(trace: dict, names: tuple[str, ...], dt_s: float, path: Path)
     for j in range(len(names), rows * cols):
         axes[j // cols][j % cols].axis("off")
     axes[0][0].legend(fontsize=8)
+    fig.suptitle(f"benchmark episode {trace['episode']}: estimated vs true x_exp ({len(true) * dt_s:.1f} s)")
     for ax in axes[-1]:
         ax.set_xlabel("t (s)")
     fig.tight_layout()

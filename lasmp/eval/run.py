@@ -53,10 +53,11 @@ def relative_pose(readout) -> tuple[np.ndarray, np.ndarray]:
     return readout.p_body_p, np.einsum("nji,njk->nik", readout.r_wp, readout.r_wb)
 
 
-def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=None, plot_episode: int | None = 0,
+def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=None, trace: bool = False,
                   progress: bool = True) -> dict:  # fmt: skip
     """Play `num_episodes` benchmark episodes; per-episode metrics (arrays in benchmark order),
-    estimator errors (if `policy` has estimators) and one episode's estimate trace."""
+    estimator errors (if `policy` is given) and, with `trace`, the estimated and true x_exp over the
+    longest episode of the first wave (episodes 0..num_envs-1, one per env)."""
     source = BenchmarkSource(bench, num_episodes, env.num_envs)
     env.episode_source = source
     metrics = EpisodeMetrics(env.num_envs, env.cfg.rewards.h_des_m)
@@ -71,14 +72,16 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
                                                                "position_deviation_m", "rotation_deviation_rad",
                                                                "power_w")}  # fmt: skip
     est = {"abs_sum": None, "l2_sum": 0.0, "count": 0}
-    trace = {"true": [], "estimate": []}
+    first_wave: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (episode per env, true, estimate)
     done_count, start, last_print = 0, time.perf_counter(), 0.0
     with torch.inference_mode():
         while done_count < num_episodes:
             ep_before = source.episode_of_env.copy()
             active = ep_before >= 0
-            if policy is not None and getattr(policy, "num_explicit", None) is not None:
-                _accumulate_estimates(policy, obs, active, est, trace, ep_before, plot_episode)
+            if policy is not None:
+                x_true, x_hat = _accumulate_estimates(policy, obs, active, est)
+                if trace and ((ep_before >= 0) & (ep_before < env.num_envs)).any():
+                    first_wave.append((ep_before, x_true.numpy().copy(), x_hat.numpy().copy()))
             obs, _, done, extras = env.step(controller(obs))
             metrics.step(active, captured["collision"], captured["p"], captured["r"], captured["tau"],
                          captured["q_dot"])  # fmt: skip
@@ -114,11 +117,20 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
             "l_imp_mean_l2_error": est["l2_sum"] / est["count"],
             "samples": est["count"],
         }
-        out["trace"] = {k: np.array(v) for k, v in trace.items()} if trace["true"] else None
+        if first_wave:
+            wave = min(env.num_envs, num_episodes)
+            longest = int(np.nanargmax(episodes["steps"][:wave]))  # played by env `longest`
+            rows = [(t, e) for eps, t, e in first_wave if eps[longest] == longest]
+            out["trace"] = {
+                "episode": longest,
+                "true": np.array([t[longest] for t, _ in rows]),
+                "estimate": np.array([e[longest] for _, e in rows]),
+            }
     return out
 
 
-def _accumulate_estimates(policy, obs, active, est, trace, ep_before, plot_episode) -> None:
+def _accumulate_estimates(policy, obs, active, est) -> tuple[torch.Tensor, torch.Tensor]:
+    """Add this step's estimation errors of the active envs; return (true, estimated) x_exp."""
     x_hat, l_hat = policy.estimates(obs)
     k = x_hat.shape[1]
     x_true = obs["priv_explicit"][:, :k]
@@ -128,8 +140,4 @@ def _accumulate_estimates(policy, obs, active, est, trace, ep_before, plot_episo
     est["abs_sum"] = abs_err if est["abs_sum"] is None else est["abs_sum"] + abs_err
     est["l2_sum"] += float((l_hat - l_true).norm(dim=-1)[mask].sum())
     est["count"] += int(active.sum())
-    if plot_episode is not None:
-        env_idx = np.flatnonzero(ep_before == plot_episode)
-        if len(env_idx):
-            trace["true"].append(x_true[env_idx[0]].numpy().copy())
-            trace["estimate"].append(x_hat[env_idx[0]].numpy().copy())
+    return x_true, x_hat

@@ -346,7 +346,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--export", choices=("onnx", "jit"), help="write the deployable policy to --out")
     p.add_argument("--out", help="directory for --export")
     p.add_argument("--trajectories", help="a trajectory file (.npz) replayed instead of sampled trajectories")
+    p.add_argument(
+        "--benchmark-episode",
+        type=int,
+        default=None,
+        metavar="K",
+        help="play benchmark episode K (its trajectory and robot; see --benchmark) and the ones after",
+    )
+    p.add_argument(
+        "--benchmark", default="benchmarks/xi_eval.npz", help="the benchmark file for --benchmark-episode"
+    )
     return p
+
+
+def use_benchmark_episodes(env, path: str, first: int) -> None:
+    """Reset `env` into benchmark episodes first, first + 1, ... (trajectory k with robot k mod R)."""
+    from lasmp.eval import benchmark as bm
+    from lasmp.eval.run import BenchmarkSource
+
+    bench = bm.load(path)
+    if not 0 <= first < len(bench.trajectories):
+        raise ValueError(f"--benchmark-episode must be in [0, {len(bench.trajectories) - 1}], got {first}")
+    source = BenchmarkSource(bench, len(bench.trajectories), env.num_envs)
+    source.next_episode = first
+    env.episode_source = source
+    env.reset()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -362,7 +386,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         env, policy, _ = load_deploy_policy(args.checkpoint, args.num_envs, args.seed, args.trajectories)
-    except (CheckpointError, TrajectoryFileError, ConfigError) as err:
+        if args.benchmark_episode is not None:
+            use_benchmark_episodes(env, args.benchmark, args.benchmark_episode)
+    except (CheckpointError, TrajectoryFileError, ConfigError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
 

@@ -145,3 +145,21 @@ def test_export_needs_out(run_dir):
     with pytest.raises(SystemExit) as exc:
         main(["--checkpoint", str(run_dir), "--export", "onnx"])
     assert exc.value.code == 2
+
+
+def test_benchmark_episode_plays_that_trajectory_and_robot(run_dir, tmp_path, capsys):
+    from lasmp.eval import benchmark as bm
+    from lasmp.play import load_deploy_policy, use_benchmark_episodes
+
+    bench_path = tmp_path / "bench.npz"
+    bench = bm.generate(num_trajectories=6, num_robots=2, seed=0)
+    bm.save(bench_path, bench)
+    env, _, _ = load_deploy_policy(str(run_dir), num_envs=1)
+    use_benchmark_episodes(env, str(bench_path), 3)
+    pose_env, _, _ = env.traj.evaluate(np.array([2.0]))
+    pose_bench, _, _ = bench.trajectories.evaluate(np.array([2.0]), rows=[3])
+    assert np.array_equal(pose_env, pose_bench)
+    assert env.intrinsics.trunk_mass_kg[0] == bench.robots.trunk_mass_kg[3 % 2]
+    assert main(["--checkpoint", str(run_dir), "--benchmark", str(bench_path), "--benchmark-episode", "9",
+                 "--steps", "1"]) == 2  # fmt: skip
+    assert "--benchmark-episode must be in [0, 5]" in capsys.readouterr().err

@@ -11,6 +11,8 @@ object with the seconds per iteration of each part and the end-to-end policy ste
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import time
 from pathlib import Path
@@ -48,7 +50,8 @@ def main(argv=None) -> dict:
     overrides = list(args.overrides) + ([f"env.num_envs={args.num_envs}"] if args.num_envs else [])
     with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
         cfg = to_train_cfg(compose("config", overrides=overrides))
-    runner = make_runner(cfg, log_dir=None)
+    with contextlib.redirect_stdout(io.StringIO()) if args.json else contextlib.nullcontext():
+        runner = make_runner(cfg, log_dir=None)  # rsl_rl prints the networks
     totals = dict.fromkeys(("physics", "inference", "env_step", "update_ppo_and_roa", "update_roa"), 0.0)
     timed(runner.env.sim, "step", totals, "physics")
     timed(runner.alg, "act", totals, "inference")

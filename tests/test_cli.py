@@ -34,7 +34,7 @@ def test_train_iteration_bench_prints_the_time_breakdown(tmp_path):
          "--json", "torch_threads=1", "policy.actor_hidden_dims=[32,32,32]"],
         capture_output=True, text=True, check=True, cwd=tmp_path, timeout=300,
     )  # fmt: skip
-    result = json.loads(out.stdout.strip().splitlines()[-1])
+    result = json.loads(out.stdout)  # --json: one JSON object and nothing else
     parts = ("physics_s", "policy_inference_s", "env_other_s", "update_ppo_s", "update_roa_s")
     assert all(result[k] >= 0 for k in parts)
     assert result["physics_s"] > 0 and result["update_ppo_s"] > 0 and result["update_roa_s"] > 0

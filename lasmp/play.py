@@ -24,7 +24,6 @@ import io
 import math
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -33,6 +32,7 @@ import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo.runner import CheckpointError, LasmpRunner, read_checkpoint
+from lasmp.atomic import atomic_write_with
 from lasmp.config import ConfigError
 from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.train import make_env, seed_everything, to_train_cfg
@@ -241,19 +241,6 @@ def has_display() -> bool:
 # ---------------------------------------------------------------------------------------------
 # Export
 # ---------------------------------------------------------------------------------------------
-def _atomic_write(path: Path, write) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def export_policy(policy, fmt: str, out_dir: str | Path) -> Path:
     """Write the deployable policy (input obs_window (n, H+1, D), output actions) as ONNX or TorchScript."""
     out_dir = Path(out_dir)
@@ -283,7 +270,7 @@ def export_policy(policy, fmt: str, out_dir: str | Path) -> Path:
 
     else:
         raise ValueError(f"export format must be onnx or jit, got {fmt!r}")
-    _atomic_write(path, write)
+    atomic_write_with(path, write)
     return path
 
 

@@ -10,15 +10,15 @@ the file and the observation layout and says what is wrong.
 from __future__ import annotations
 
 import datetime
-import os
 import re
 import statistics
-import tempfile
 from pathlib import Path
 
 import torch
 from rsl_rl.runners import OnPolicyRunner
 from rsl_rl.utils.logger import Logger
+
+from lasmp.atomic import atomic_open
 
 CHECKPOINT_FORMAT = "lasmp-checkpoint-v1"
 
@@ -68,19 +68,8 @@ def read_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
 
 
 def atomic_torch_save(obj, path: str | Path) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            torch.save(obj, f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_open(path) as f:
+        torch.save(obj, f)
 
 
 class OneLineLogger(Logger):

@@ -51,11 +51,12 @@ import argparse
 import json
 import os
 import sys
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from lasmp.atomic import atomic_open
 
 FORMAT_NAME = "lasmp-trajectories"
 FORMAT_VERSION = 1
@@ -405,18 +406,8 @@ def save(path, traj: PiecewiseCubic, meta: dict | None = None) -> None:
     meta = {**traj.meta, **(meta or {})}
     if meta:
         arrays["meta_json"] = np.array(json.dumps(meta))
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".npz", dir=directory)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)  # a file object: savez appends no ".npz"
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_open(path) as f:
+        np.savez(f, **arrays)  # a file object: savez appends no ".npz"
 
 
 def load(path) -> PiecewiseCubic:

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from lasmp.atomic import atomic_open, atomic_write_with
 from lasmp.eval.metrics import METRICS
 
 LABELS = {
@@ -21,11 +20,8 @@ LABELS = {
 
 
 def atomic_write_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    with os.fdopen(fd, "w") as f:
+    with atomic_open(path, "w") as f:
         f.write(text)
-    os.replace(tmp, path)
 
 
 def markdown(result: dict) -> str:
@@ -84,8 +80,5 @@ def plot_estimates(trace: dict, names: tuple[str, ...], dt_s: float, path: Path)
     for ax in axes[-1]:
         ax.set_xlabel("t (s)")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=100)
+    atomic_write_with(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     plt.close(fig)
-    os.replace(tmp, path)

@@ -114,6 +114,15 @@ class BaseEnv(VecEnv):
         extras = {"time_outs": torch.from_numpy(timed_out).to(self.device), "log": log}
         return self._obs, reward.to(self.device), torch.from_numpy(done).to(self.device), extras
 
+    def _finished_episode_log(self, done: np.ndarray) -> dict:
+        """Per-term reward sums (`self.rewards`, a RewardManager) and mean length of the episodes of
+        envs `done`, which end now; their reward sums are zeroed."""
+        log = {f"Episode_Reward/{k}": v for k, v in self.rewards.reset(torch.from_numpy(done)).items()}
+        log["Episode/length_s"] = (
+            float(self.episode_length_buf[torch.from_numpy(done)].float().mean()) * self.dt_s
+        )
+        return log
+
     def _package_observations(self, o: np.ndarray, groups: dict[str, np.ndarray]) -> TensorDict:
         """The TensorDict of `policy` (o), `history` and the other groups: non-finite values replaced
         by 0 and counted (`nonfinite_obs_values`), every value clipped to +-observations.clip."""

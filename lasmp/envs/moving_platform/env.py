@@ -209,13 +209,9 @@ class MovingPlatformEnv(BaseEnv):
         finished = terminated | timed_out
         if finished.any():
             done = ids[finished]
-            for name, value in self.rewards.reset(torch.from_numpy(done)).items():
-                log[f"Episode_Reward/{name}"] = value
+            log = self._finished_episode_log(done)
             success = timed_out[finished]
             log["Episode/success_rate"] = float(success.mean())
-            log["Episode/length_s"] = (
-                float(self.episode_length_buf[torch.from_numpy(done)].float().mean()) * self.dt_s
-            )
             if self.curriculum is not None:
                 self.curriculum.update(self.traj_level[done], success)
 

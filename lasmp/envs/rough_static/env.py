@@ -248,13 +248,8 @@ class RoughStaticEnv(BaseEnv):
         log = {}
         finished = terminated | timed_out
         if finished.any():
-            done = ids[finished]
-            for name, value in self.rewards.reset(torch.from_numpy(done)).items():
-                log[f"Episode_Reward/{name}"] = value
+            log = self._finished_episode_log(ids[finished])
             log["Episode/timeout_rate"] = float(timed_out[finished].mean())
-            log["Episode/length_s"] = (
-                float(self.episode_length_buf[torch.from_numpy(done)].float().mean()) * self.dt_s
-            )
         n = len(ids)
         dr = self.cfg.domain_rand
         if dr.enabled:

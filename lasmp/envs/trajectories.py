@@ -410,26 +410,35 @@ def save(path, traj: PiecewiseCubic, meta: dict | None = None) -> None:
         np.savez(f, **arrays)  # a file object: savez appends no ".npz"
 
 
+def read_npz(path: str, error: type[Exception]):
+    """Read every array of an .npz file; return `get(key, optional=False)`, which raises `error` naming
+    the file and a missing key (or returns None for a missing optional one). An unreadable or
+    non-.npz file raises `error` too."""
+    try:
+        z = np.load(path, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):  # a plain .npy array
+            raise error(f"{path}: not an .npz archive (it holds a single .npy array)")
+        with z:
+            data = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
+        raise error(f"{path}: not a readable .npz archive (truncated or corrupt?): {exc}") from None
+
+    def get(key: str, optional: bool = False) -> np.ndarray | None:
+        if key not in data:
+            if optional:
+                return None
+            raise error(f"{path}: missing key {key!r} (keys present: {sorted(data)})")
+        return data[key]
+
+    return get
+
+
 def load(path) -> PiecewiseCubic:
     """Read and validate a trajectory file; any problem raises TrajectoryFileError naming file and problem."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise TrajectoryFileError(f"{path}: no such trajectory file")
-    try:
-        z = np.load(path, allow_pickle=False)
-        if not isinstance(z, np.lib.npyio.NpzFile):  # a plain .npy array
-            raise TrajectoryFileError(f"{path}: not an .npz archive (it holds a single .npy array)")
-        with z:
-            data = {k: z[k] for k in z.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
-        raise TrajectoryFileError(
-            f"{path}: not a readable .npz archive (truncated or corrupt?): {exc}"
-        ) from None
-
-    def get(key: str) -> np.ndarray:
-        if key not in data:
-            raise TrajectoryFileError(f"{path}: missing key {key!r} (keys present: {sorted(data)})")
-        return data[key]
+    get = read_npz(path, TrajectoryFileError)
 
     def text(key: str) -> str:
         v = get(key)
@@ -473,7 +482,7 @@ def load(path) -> PiecewiseCubic:
         )
     else:
         raise TrajectoryFileError(f"{path}: unknown kind {kind!r}; valid: 'waypoints', 'samples'")
-    if "meta_json" in data:
+    if get("meta_json", optional=True) is not None:
         try:
             traj.meta = json.loads(text("meta_json"))
         except json.JSONDecodeError as exc:

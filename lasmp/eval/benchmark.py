@@ -163,18 +163,7 @@ def load(path) -> Benchmark:
         raise BenchmarkFileError(f"{path}: no such benchmark file")
     if not zipfile.is_zipfile(path):
         raise BenchmarkFileError(f"{path}: not an .npz (zip) archive")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
-        raise BenchmarkFileError(
-            f"{path}: not a readable .npz archive (truncated or corrupt?): {exc}"
-        ) from None
-
-    def get(key: str) -> np.ndarray:
-        if key not in data:
-            raise BenchmarkFileError(f"{path}: missing key {key!r} (keys present: {sorted(data)})")
-        return data[key]
+    get = T.read_npz(path, BenchmarkFileError)
 
     fmt = get("format")
     if fmt.shape != () or fmt.dtype.kind != "U" or str(fmt) != FORMAT_NAME:
@@ -183,9 +172,9 @@ def load(path) -> Benchmark:
         v = get(key)
         if v.shape != () or v.dtype.kind not in "iu":
             raise BenchmarkFileError(f"{path}: {key!r} must be an integer scalar, got {v.dtype} {v.shape}")
-    if int(data["version"]) != FORMAT_VERSION:
+    if int(get("version")) != FORMAT_VERSION:
         raise BenchmarkFileError(
-            f"{path}: unsupported version {int(data['version'])}, expected {FORMAT_VERSION}"
+            f"{path}: unsupported version {int(get('version'))}, expected {FORMAT_VERSION}"
         )
 
     t, p, nw = (get(k) for k in TRAJ_KEYS)
@@ -221,7 +210,7 @@ def load(path) -> Benchmark:
         if not np.all(np.isfinite(a)):
             raise BenchmarkFileError(f"{path}: non-finite values (NaN/inf) in {key!r}")
         robots[name] = a.astype(np.float64)
-    return Benchmark(traj, Intrinsics(**robots), int(data["seed"]))
+    return Benchmark(traj, Intrinsics(**robots), int(get("seed")))
 
 
 def sha256(path) -> str:

@@ -15,6 +15,7 @@ from typing import Any
 
 from omegaconf import OmegaConf
 
+from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_TERMS
 from lasmp.envs.rough_static import rewards as rough_rewards
 
@@ -45,6 +46,9 @@ class SimCfg:
     decimation: int = 4  # physics steps per policy step -> policy dt 0.02 s (ours)
     num_threads: int = 0  # Batch worker threads; 0 = all cores
     solver_iterations: int = 20  # fewer than MuJoCo's 100: contacts converge well before (ours)
+    cone: str = "pyramidal"  # MuJoCo friction cone: pyramidal (MuJoCo's default) | elliptic
+    impratio: float = 1.0  # frictional-to-normal constraint impedance ratio (MuJoCo's default 1)
+    noslip_iterations: int = 0  # MuJoCo's no-slip post-solver passes (0 = off): removes soft-contact creep
 
     def validate(self, p: str):
         _positive(f"{p}.dt_s", self.dt_s)
@@ -56,6 +60,11 @@ class SimCfg:
             raise ConfigError(f"{p}.num_threads must be >= 0 (0 = all cores), got {self.num_threads}")
         if self.solver_iterations < 1:
             raise ConfigError(f"{p}.solver_iterations must be >= 1, got {self.solver_iterations}")
+        if self.cone not in ("pyramidal", "elliptic"):
+            raise ConfigError(f"{p}.cone must be 'pyramidal' or 'elliptic', got {self.cone!r}")
+        _positive(f"{p}.impratio", self.impratio)
+        if self.noslip_iterations < 0:
+            raise ConfigError(f"{p}.noslip_iterations must be >= 0, got {self.noslip_iterations}")
 
 
 @dataclass
@@ -135,29 +144,43 @@ class DomainRandCfg:
 class InitStateCfg:
     yaw_range_rad: list[float] = field(default_factory=lambda: [-math.pi, math.pi])
     foot_clearance_m: float = 0.001  # feet start this far above the surface: touching, never inside
+    xy_offset_max_m: float = 0.0  # start uniformly in a disc of this radius around the centre (0: at it)
 
     def validate(self, p: str):
         _range(f"{p}.yaw_range_rad", self.yaw_range_rad, -math.pi, math.pi)
         _positive(f"{p}.foot_clearance_m", self.foot_clearance_m, allow_zero=True)
         if self.foot_clearance_m > 0.05:
             raise ConfigError(f"{p}.foot_clearance_m must be <= 0.05 m, got {self.foot_clearance_m}")
+        _positive(f"{p}.xy_offset_max_m", self.xy_offset_max_m, allow_zero=True)
+        if self.xy_offset_max_m > 0.7:
+            raise ConfigError(f"{p}.xy_offset_max_m must be <= 0.7 m (the robot must fit), got {self.xy_offset_max_m}")
 
 
 @dataclass
 class PlatformCfg:
     size_m: list[float] = field(default_factory=lambda: [2.0, 2.0, 0.2])  # width, length, height, SPEC §3
-    mass_kg: float = 800.0  # ~65x the robot: its weight barely disturbs the platform (ours)
+    # (ours) so heavy that the robot does not disturb it at the soft gains below: kp = M omega_n^2, so
+    # the robot's weight sags it m_robot g / kp = 1.2 mm at factor 1 (800 kg would sag 15 cm)
+    mass_kg: float = 1.0e5
     friction: float = 1.0  # surface friction; a contact uses the larger of foot and platform values
-    # nominal PD per axis, as a 2nd-order system at factor 1: kp = M w^2 with w = 2 pi bandwidth_hz,
-    # kd = 2 zeta M w / kd_factor_ref so that the paper's damping factor ~0.025 gives damping ratio zeta.
-    bandwidth_hz: float = 4.0  # (ours) tracks 10-s trajectories closely but not perfectly
+    # The paper's platform gains are unitless factors (Table B). We read the stiffness factor as
+    # kp / M in s^-2 per axis (M the platform's mass or inertia about the axis): at factor 1 the axis
+    # is a 2nd-order system of natural frequency omega_n_rad_s = 1 rad/s, and the training range
+    # 1.0-1.5 gives 1.0-1.22 rad/s. The damping factor scales kd = 2 zeta M omega_n / kd_factor_ref,
+    # so the paper's ~0.025 gives damping ratio zeta (its literal reading, zeta ~ 0.01, would leave
+    # the platform ringing). Calibrated against the paper's Stand Still row: README "The paper's world".
+    omega_n_rad_s: float = 1.0
     damping_ratio: float = 0.7  # (ours) at kd factor == kd_factor_ref
     kd_factor_ref: float = 0.025  # midpoint of the paper's training damping factor range
+    # False (ours, calibrated): a PD on the position target only, force = kp (x_ref - x) - kd v, as a
+    # simulator's position drive (Isaac Gym's DOF targets) does; the platform then follows the
+    # reference as a 2nd-order low-pass filter. True: force = kp (x_ref - x) + kd (v_ref - v).
+    velocity_feedforward: bool = False
 
     def validate(self, p: str):
         if len(self.size_m) != 3 or min(self.size_m) <= 0:
             raise ConfigError(f"{p}.size_m must be three positive lengths, got {list(self.size_m)}")
-        for name in ("mass_kg", "friction", "bandwidth_hz", "damping_ratio", "kd_factor_ref"):
+        for name in ("mass_kg", "friction", "omega_n_rad_s", "damping_ratio", "kd_factor_ref"):
             _positive(f"{p}.{name}", getattr(self, name))
 
 
@@ -165,12 +188,23 @@ class PlatformCfg:
 class TrajectoryCfg:
     split: str = "train"  # waypoint coordinate ranges: train | test (identical coordinates, N differs)
     duration_s: float = 10.0  # T, also the episode length
+    # waypoints as control points of a B-spline (SPEC §4), or "interpolating" (through them: harder)
+    kind: str = "approximating"
+    degree: int = 10  # approximating B-spline degree: calibrated to the paper's 7.12 m / 0.69 m/s (ours)
     file: str | None = None  # a trajectory file (lasmp-trajectories .npz): episodes replay its rows in order
 
     def validate(self, p: str):
         if self.split not in ("train", "test"):
             raise ConfigError(f"{p}.split must be 'train' or 'test', got {self.split!r}")
         _positive(f"{p}.duration_s", self.duration_s)
+        try:
+            trj.SplineSpec(self.kind, self.degree)
+        except ValueError as err:
+            raise ConfigError(f"{p}.kind / {p}.degree: {err}") from None
+
+    @property
+    def spline(self) -> trj.SplineSpec:
+        return trj.SplineSpec(self.kind, self.degree)
 
 
 @dataclass
@@ -204,7 +238,11 @@ class RewardsCfg:
     sigma_alignment: float = 0.3  # k4
     sigma_level_rad: float = 0.2  # k6
     sigma_height_m: float = 0.1  # k8
-    h_des_m: float = 0.37  # trunk height in the platform frame (0.27 m above the 0.1-m-high top surface)
+    h_des_m: float = 0.37  # desired trunk height, measured from `h_des_from`
+    # where h_des is measured from (SPEC §13): "top" = the platform's top surface (the trunk 0.37 m
+    # above the surface), "centre" = the platform frame's origin, its CoM 0.1 m below the top (ours,
+    # calibrated: README "The paper's world")
+    h_des_from: str = "top"
     f_tol_n: float = 50.0
     t_swing_des_s: float = 0.1
     t_contact_des_s: float = 0.5
@@ -218,9 +256,15 @@ class RewardsCfg:
         for name, w in self.weights.items():
             if not math.isfinite(float(w)):
                 raise ConfigError(f"{p}.weights.{name} must be finite, got {w}")
+        if self.h_des_from not in ("top", "centre"):
+            raise ConfigError(f"{p}.h_des_from must be 'top' or 'centre', got {self.h_des_from!r}")
         for f in fields(self):
-            if f.name != "weights":
+            if f.name not in ("weights", "h_des_from"):
                 _positive(f"{p}.{f.name}", getattr(self, f.name))
+
+    def h_des_p_m(self, plf_top_m: float) -> float:
+        """h_des in the platform frame (origin at its CoM), m: what rewards and metrics compare p_body_p,z to."""
+        return self.h_des_m + (plf_top_m if self.h_des_from == "top" else 0.0)
 
 
 @dataclass

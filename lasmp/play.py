@@ -8,7 +8,9 @@ only the number of envs, the seed and (optionally) the trajectory file are overr
 runs in deployment mode: its inputs are o_t and the history o^H only (the estimators replace the
 privileged groups), with deterministic (mean) actions.
 
-Rendering is offscreen with `mujoco.Renderer`, which needs an OpenGL backend without a display:
+Rendering (`lasmp.render`) shows env 0 in a visual-only world (ground grid, sky, pillars) from a
+camera following the platform, with a caption (time, N, platform speed, collisions); it is
+offscreen with `mujoco.Renderer`, which needs an OpenGL backend without a display:
 `MUJOCO_GL=egl` (a GPU driver, or Mesa's EGL; the default set here) or, as a fallback,
 `MUJOCO_GL=osmesa` with libosmesa6 installed (slow, software). `--video` also needs imageio and
 imageio-ffmpeg (`pip install -e .[video]`). `--viewer` opens MuJoCo's interactive viewer and
@@ -19,15 +21,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import importlib
 import io
-import math
-import os
 import sys
-import time
 from pathlib import Path
 
-import numpy as np
 import torch
 from omegaconf import OmegaConf
 
@@ -35,15 +32,18 @@ from lasmp.algo.runner import CheckpointError, LasmpRunner, read_checkpoint
 from lasmp.atomic import atomic_write_with
 from lasmp.config import ConfigError
 from lasmp.envs.trajectories import TrajectoryFileError
+from lasmp.render.renderer import (
+    SNAPSHOT_COUNT,
+    EnvRenderer,
+    RenderError,
+    VideoWriter,
+    frame_caption,
+    save_snapshots,
+    snapshot_steps,
+)
+from lasmp.render.viewer import Viewer, has_display
 from lasmp.train import make_env, seed_everything, to_train_cfg
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
-
-VIDEO_SIZE = (640, 480)  # width, height (px)
-SNAPSHOT_COUNT = 6
-
-
-class PlayError(RuntimeError):
-    """A user-facing problem (a missing optional package, ...); the message says what to do."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -101,144 +101,6 @@ def obs_window(obs) -> torch.Tensor:
 
 
 # ---------------------------------------------------------------------------------------------
-# Rendering (env 0, offscreen)
-# ---------------------------------------------------------------------------------------------
-def select_gl_backend() -> None:
-    """Headless OpenGL for `mujoco.Renderer`: MUJOCO_GL (default egl), even if mujoco came in first.
-
-    mujoco picks its GL backend when it is imported; the env imports it long before anything is
-    rendered, usually with MUJOCO_GL unset (= GLFW, which needs a display). Switch the choice to
-    the requested headless backend then.
-    """
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    want = os.environ["MUJOCO_GL"].lower().strip()
-    from mujoco.rendering.classic import gl_context
-
-    if want in ("egl", "osmesa") and getattr(gl_context, "_MUJOCO_GL", want) != want:
-        gl_context.GLContext = importlib.import_module(f"mujoco.{want}").GLContext
-        gl_context._MUJOCO_GL = want
-
-
-class EnvRenderer:
-    """Offscreen frames of env 0: a camera following the platform, or a fixed world camera."""
-
-    def __init__(self, env, follow: bool, width: int = VIDEO_SIZE[0], height: int = VIDEO_SIZE[1]):
-        select_gl_backend()
-        import mujoco
-
-        self._mj = mujoco
-        self.batch = env.sim.batch
-        self.model = self.batch.get_model(0)
-        self.data = mujoco.MjData(self.model)
-        self.renderer = mujoco.Renderer(self.model, height=height, width=width)
-        self.follow = follow
-        self.platform_body = self.model.body("platform").id
-        cam = mujoco.MjvCamera()
-        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        if follow:  # behind-right of the platform, looking down at it, ~4 m away
-            cam.distance, cam.elevation, cam.azimuth = 4.0, -25.0, 135.0
-        else:  # fixed: from about (7, -7, 5.5) m at (0, 0, 2) m, so the 0..5 m platform path stays in view
-            eye, target = np.array([7.0, -7.0, 5.5]), np.array([0.0, 0.0, 2.0])
-            d = target - eye
-            cam.lookat[:] = target
-            cam.distance = float(np.linalg.norm(d))
-            cam.elevation = math.degrees(math.asin(d[2] / cam.distance))
-            cam.azimuth = math.degrees(math.atan2(d[1], d[0]))
-        self.camera = cam
-
-    def frame(self) -> np.ndarray:
-        """(height, width, 3) uint8 image of env 0's current state."""
-        self.batch.get_data(0, self.data)
-        self._mj.mj_forward(self.model, self.data)
-        if self.follow:
-            self.camera.lookat[:] = self.data.xpos[self.platform_body]
-        self.renderer.update_scene(self.data, self.camera)
-        return self.renderer.render()
-
-    def close(self) -> None:
-        self.renderer.close()
-
-
-class VideoWriter:
-    """mp4 at one frame per policy step, streamed to disk (imageio + imageio-ffmpeg)."""
-
-    def __init__(self, path: str, fps: float):
-        try:
-            import imageio.v2 as imageio
-            import imageio_ffmpeg  # noqa: F401  (the mp4 plugin's backend)
-        except ImportError as err:
-            raise PlayError(
-                f"--video needs imageio and imageio-ffmpeg ({err}); install them with: pip install -e .[video]"
-            ) from err
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        self.path = path
-        self.writer = imageio.get_writer(path, fps=fps, codec="libx264", macro_block_size=16)
-        self.frames = 0
-
-    def add(self, frame: np.ndarray) -> None:
-        self.writer.append_data(frame)
-        self.frames += 1
-
-    def close(self) -> None:
-        self.writer.close()
-
-
-def save_snapshots(frames: list[np.ndarray], path: str) -> None:
-    """The frames side by side, left to right in time, as one PNG."""
-    from matplotlib import image
-
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    image.imsave(path, np.concatenate(frames, axis=1))
-
-
-def snapshot_steps(steps: int, count: int = SNAPSHOT_COUNT) -> set[int]:
-    """Steps (after which a frame is taken) evenly spaced over the run, first and last included."""
-    return {int(s) for s in np.linspace(0, max(steps - 1, 0), count).round()}
-
-
-# ---------------------------------------------------------------------------------------------
-# Interactive viewer
-# ---------------------------------------------------------------------------------------------
-class Viewer:
-    """MuJoCo's passive viewer on env 0, synced once per policy step at real time."""
-
-    def __init__(self, env):
-        import mujoco
-        import mujoco.viewer
-
-        self._mj = mujoco
-        self.batch = env.sim.batch
-        self.dt_s = env.dt_s
-        self.model = self.batch.get_model(0)
-        self.data = mujoco.MjData(self.model)
-        self.batch.get_data(0, self.data)
-        mujoco.mj_forward(self.model, self.data)
-        self.handle = mujoco.viewer.launch_passive(self.model, self.data)
-        self._last = time.perf_counter()
-
-    def sync(self) -> bool:
-        """Show the current state; False once the window was closed."""
-        if not self.handle.is_running():
-            return False
-        with self.handle.lock():
-            self.batch.get_data(0, self.data)
-            self._mj.mj_forward(self.model, self.data)
-        self.handle.sync()
-        wait = self.dt_s - (time.perf_counter() - self._last)
-        if wait > 0:
-            time.sleep(wait)
-        self._last = time.perf_counter()
-        return True
-
-    def close(self) -> None:
-        self.handle.close()
-
-
-def has_display() -> bool:
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
-# ---------------------------------------------------------------------------------------------
 # Export
 # ---------------------------------------------------------------------------------------------
 def export_policy(policy, fmt: str, out_dir: str | Path) -> Path:
@@ -281,9 +143,10 @@ def rollout(env, policy, steps: int, video=None, snapshots=None, viewer=None) ->
     """Run `steps` deterministic policy steps; return the summary counts.
 
     video: (EnvRenderer, VideoWriter) for a frame per step; snapshots: (EnvRenderer, frame list)
-    for SNAPSHOT_COUNT frames; viewer: a Viewer to sync each step (closing it ends the run).
+    for SNAPSHOT_COUNT frames (one frame per step serves both when they share the renderer);
+    viewer: a Viewer to sync each step (closing it ends the run). Frames carry env 0's caption.
     """
-    episodes = collisions = 0
+    episodes = collisions = collisions_env0 = 0
     reward_sum = 0.0
     done_steps = 0
     shots = snapshot_steps(steps) if snapshots else set()
@@ -292,13 +155,20 @@ def rollout(env, policy, steps: int, video=None, snapshots=None, viewer=None) ->
         for step in range(steps):
             obs, reward, dones, extras = env.step(policy(obs))
             done_steps += 1
+            collided = dones & ~extras["time_outs"]
             episodes += int(dones.sum())
-            collisions += int((dones & ~extras["time_outs"]).sum())
+            collisions += int(collided.sum())
+            collisions_env0 += int(collided[0])
             reward_sum += float(reward.sum())
-            if video:
-                video[1].add(video[0].frame())
-            if step in shots:
-                snapshots[1].append(snapshots[0].frame())
+            shot = step in shots
+            wanted = ([video[0]] if video else []) + ([snapshots[0]] if shot else [])
+            if wanted:  # one frame per renderer and step
+                caption = frame_caption(env, collisions_env0)
+                frames = {id(r): r.frame(caption) for r in dict.fromkeys(wanted)}
+                if video:
+                    video[1].add(frames[id(video[0])])
+                if shot:
+                    snapshots[1].append(frames[id(snapshots[0])].copy())
             if viewer and not viewer.sync():
                 break
     return {
@@ -327,7 +197,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--video", help="write an mp4 of env 0 (camera following the platform)")
     p.add_argument(
-        "--snapshots", help=f"write a PNG strip of {SNAPSHOT_COUNT} frames of env 0 (fixed camera)"
+        "--snapshots",
+        help=f"write a PNG strip of {SNAPSHOT_COUNT} frames of env 0 (camera following the platform)",
     )
     p.add_argument("--viewer", action="store_true", help="show env 0 in MuJoCo's viewer (needs a display)")
     p.add_argument("--export", choices=("onnx", "jit"), help="write the deployable policy to --out")
@@ -385,21 +256,20 @@ def main(argv: list[str] | None = None) -> int:
     closers = []
     video = snapshots = viewer = None
     try:
+        if args.video or args.snapshots:  # one renderer (camera following the platform) serves both
+            renderer = EnvRenderer(env, follow=True)
+            closers.append(renderer)
         if args.video:
             writer = VideoWriter(args.video, fps=1.0 / env.dt_s)
             closers.append(writer)
-            renderer = EnvRenderer(env, follow=True)
-            closers.append(renderer)
             video = (renderer, writer)
         if args.snapshots:
-            renderer = EnvRenderer(env, follow=False)
-            closers.append(renderer)
             snapshots = (renderer, [])
         if args.viewer:
             viewer = Viewer(env)
             closers.append(viewer)
         stats = rollout(env, policy, args.steps, video, snapshots, viewer)
-    except PlayError as err:
+    except RenderError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     finally:

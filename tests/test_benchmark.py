@@ -57,7 +57,9 @@ def test_same_seed_same_bytes_different_seed_different(tmp_path):
     assert a.read_bytes() == b.read_bytes()
     assert B.sha256(a) == B.sha256(b) == hashlib.sha256(a.read_bytes()).hexdigest()
     assert a.read_bytes() != c.read_bytes() and B.sha256(a) != B.sha256(c)
-    assert [p.name for p in tmp_path.rglob(".tmp-*")] == []  # atomic write leaves no temp file
+    # the atomic write leaves no temporary file (lasmp.atomic names them ".<name>.<random>.tmp")
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == ["a.npz", "b.npz", "c.npz"]
+    assert list(tmp_path.rglob("*.tmp")) == []
 
 
 def test_roundtrip_bit_identical(bench, saved):
@@ -69,8 +71,10 @@ def test_roundtrip_bit_identical(bench, saved):
     for _, (name, _) in B.ROBOT_FIELDS.items():
         assert np.array_equal(getattr(bench.robots, name), getattr(back.robots, name)), name
     with np.load(saved) as z:  # an ordinary npz with the documented keys
-        assert str(z["format"]) == "lasmp-benchmark" and int(z["version"]) == 1
-        assert set(z.files) == {"format", "version", "seed", *B.TRAJ_KEYS, *B.ROBOT_FIELDS}
+        assert str(z["format"]) == "lasmp-benchmark" and int(z["version"]) == 2
+        assert str(z["spline"]) == "approximating" and int(z["spline_degree"]) == B.T.DEFAULT_DEGREE
+        traj_keys = ("knot_times_s", "waypoints", "n_waypoints", "spline", "spline_degree")
+        assert set(z.files) == {"format", "version", "seed", *traj_keys, *B.ROBOT_FIELDS}
 
 
 def test_ranges(bench):
@@ -121,6 +125,12 @@ def test_wrong_format(saved, tmp_path):
     with pytest.raises(B.BenchmarkFileError, match="format") as e:
         B.load(p)
     assert str(p) in str(e.value)
+
+
+def test_old_version_is_refused_with_the_command_to_regenerate(saved, tmp_path):
+    p = _rewrite(saved, tmp_path / "v1.npz", lambda d: {**d, "version": np.array(1, dtype=np.int64)})
+    with pytest.raises(B.BenchmarkFileError, match=r"v1\.npz: unsupported version 1, expected 2.*benchmark generate"):
+        B.load(p)
 
 
 def test_missing_key(saved, tmp_path):

@@ -89,6 +89,22 @@ def test_reset_places_robot_at_centre_with_random_yaw_feet_touching_not_inside()
     assert not r.body_collision.any()
 
 
+def test_off_centre_start_is_uniform_in_its_disc():
+    env = make(64, init_state={"xy_offset_max_m": 0.5})
+    r_xy = np.linalg.norm(env.readout.p_body_p[:, :2], axis=1)
+    assert r_xy.max() <= 0.5 + 1e-6 and r_xy.min() < 0.25 and r_xy.max() > 0.35
+    assert not env.readout.body_collision.any()
+
+
+def test_env_builds_and_steps_each_trajectory_kind():
+    for kind in ("approximating", "interpolating"):
+        env = make(4, trajectory={"kind": kind})
+        assert np.all(env.traj.kind == trj.KIND_NAMES.index(kind))
+        for _ in range(5):
+            obs, _, _, _ = env.step(torch.zeros(4, 12))
+        assert torch.isfinite(obs["policy"]).all()
+
+
 def test_yawed_robot_sees_platform_velocity_in_its_own_frame():
     env = make(1, domain_rand={"enabled": False})
     sim, ix = env.sim, env.index
@@ -286,6 +302,13 @@ def test_actions_of_wrong_shape_or_nan_are_refused():
         ({"platform": {"mass_kg": 0}}, "env.platform.mass_kg"),
         ({"curriculum": {"promote_success_rate": 1.5}}, "env.curriculum.promote_success_rate"),
         ({"sim": {"dt": 0.01}}, "dt"),  # a typo of dt_s: unknown key
+        ({"trajectory": {"kind": "bezier"}}, "env.trajectory.kind"),
+        ({"trajectory": {"degree": 2}}, "env.trajectory.degree"),
+        ({"sim": {"cone": "round"}}, "env.sim.cone"),
+        ({"sim": {"noslip_iterations": -1}}, "env.sim.noslip_iterations"),
+        ({"init_state": {"xy_offset_max_m": 0.9}}, "env.init_state.xy_offset_max_m"),
+        ({"platform": {"omega_n_rad_s": 0.0}}, "env.platform.omega_n_rad_s"),
+        ({"rewards": {"h_des_from": "floor"}}, "env.rewards.h_des_from"),
     ],
 )
 def test_invalid_config_fails_at_start_up_naming_the_field(overrides, field):

@@ -214,3 +214,31 @@ def test_evaluate_lasmp_checkpoint_reports_estimator_accuracy_and_plots(tmp_path
     assert est["samples"] >= 6
     assert (tmp_path / "ev" / "estimates.png").stat().st_size > 10_000
     assert 0 <= result["estimates_plot_episode"] < 3  # an episode of the first wave (3 envs)
+
+
+def test_position_deviation_uses_the_frame_of_p_rel_and_height_the_platform_frame():
+    """With p_rel given (e.g. the translating frame), the deviation follows it; the height stays in P."""
+    m = EpisodeMetrics(2, H)
+    m.start(np.array([0, 1]), np.zeros((2, 3)), np.tile(np.eye(3), (2, 1, 1)))
+    p_body_p = np.array([[0.0, 0.0, H], [0.0, 0.0, H - 0.3]])  # env 1 is 0.3 m low in P
+    p_rel = np.array([[0.3, 0.4, 0.0], [0.0, 0.0, 0.0]])  # env 0 moved 0.5 m in the other frame
+    z = np.zeros((2, 12))
+    m.step(np.array([True, True]), np.zeros(2, bool), p_body_p, np.tile(np.eye(3), (2, 1, 1)), z, z, p_rel)
+    out = m.close(np.array([0, 1]), np.array([False, False]))
+    np.testing.assert_allclose(out["position_deviation_m"], [0.5, 0.0])
+    np.testing.assert_allclose(out["height_violation_rate"], [0.0, 1.0])
+
+
+def test_relative_pose_frames():
+    from types import SimpleNamespace
+
+    from lasmp.eval.run import relative_pose
+
+    rot = rot_z(0.7)[None]
+    r = SimpleNamespace(p_body_p=np.array([[0.2, 0.0, 0.47]]), p_body_w=np.array([[1.0, 2.0, 3.5]]),
+                        p_plf_w=np.array([[1.0, 1.8, 3.0]]), r_wp=rot, r_wb=rot)  # fmt: skip
+    p, r_pb = relative_pose(r, "platform")
+    np.testing.assert_allclose(p, r.p_body_p)
+    np.testing.assert_allclose(r_pb[0], np.eye(3), atol=1e-12)  # trunk aligned with the platform
+    p, _ = relative_pose(r, "translating")
+    np.testing.assert_allclose(p, [[0.0, 0.2, 0.5]])

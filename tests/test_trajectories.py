@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import BSpline, CubicSpline
+from scipy.spatial import Delaunay
 
 from lasmp.envs import trajectories as T
 
@@ -39,49 +40,118 @@ def test_ranges_and_split():
         T.ranges_for_split("val")
 
 
-def test_waypoints_in_ranges_and_interpolated(traj):
+@pytest.fixture(scope="module")
+def interp():
+    return T.sample(100, T.TEST_RANGES, np.random.default_rng(123), spline=T.SplineSpec("interpolating"))
+
+
+def _control_points(tr, m):
+    """The control polygon of an approximating row: [0 x3, w_1..w_N, w_N x2]."""
+    wp = tr.knot_poses[m, : tr.n_knots[m]]
+    return np.concatenate([wp[:1], wp[:1], wp, wp[-1:], wp[-1:]])
+
+
+def test_waypoints_in_ranges(traj):
     r = T.TEST_RANGES
     assert set(np.unique(traj.n_waypoints)) == set(range(4, 17))
+    assert np.all(traj.kind == T.APPROXIMATING) and np.all(traj.degree == T.DEFAULT_DEGREE)
     for m in range(len(traj)):
         n = traj.n_knots[m]
         assert n == traj.n_waypoints[m] + 1
-        t, wp = traj.knot_times_s[m, :n], traj.knot_poses[m, 1:n]
+        wp = traj.knot_poses[m, 1:n]
         assert np.all(wp >= np.array(r.low)) and np.all(wp <= np.array(r.high))
+        assert traj.knot_times_s[m, n - 1] == 10.0
+
+
+def test_path_stays_in_convex_hull_of_control_points(traj):
+    t = np.linspace(0.0, 10.0, 201)
+    for m in range(0, len(traj), 5):
+        ctrl = _control_points(traj, m)
+        p = traj.evaluate(t, np.full(len(t), m))[0]
+        # every channel within its control points' range (the hull's bounding box, all six channels) ...
+        assert np.all(p >= ctrl.min(0) - 1e-9) and np.all(p <= ctrl.max(0) + 1e-9)
+        # ... and the translational path inside the 3-D convex hull of the control points
+        hull = Delaunay(ctrl[:, :3])
+        assert np.all(hull.find_simplex(p[:, :3], tol=1e-9) >= 0), m
+
+
+def test_matches_scipy_bspline_of_the_control_points(traj):
+    rng = np.random.default_rng(0)
+    rows = rng.integers(0, len(traj), size=4000)
+    t = rng.uniform(0.0, 10.0, size=4000)
+    p, v, a = traj.evaluate(t, rows)
+    for m in np.unique(rows)[:60]:
+        ctrl = _control_points(traj, m)
+        k = min(T.DEFAULT_DEGREE, len(ctrl) - 1)
+        knots = np.r_[np.zeros(k), np.linspace(0.0, 10.0, len(ctrl) - k + 1), np.full(k, 10.0)]
+        spl = BSpline(knots, ctrl, k)
+        sel = rows == m
+        np.testing.assert_allclose(p[sel], spl(t[sel]), atol=1e-9)
+        np.testing.assert_allclose(v[sel], spl(t[sel], 1), atol=1e-8)
+        np.testing.assert_allclose(a[sel], spl(t[sel], 2), atol=1e-7)
+
+
+def test_interpolating_kind_passes_through_waypoints(interp):
+    assert np.all(interp.kind == T.INTERPOLATING)
+    for m in range(len(interp)):
+        n = interp.n_knots[m]
+        t = interp.knot_times_s[m, :n]
         np.testing.assert_allclose(t, np.arange(n) * 10.0 / (n - 1), rtol=0, atol=1e-12)
-        assert t[-1] == 10.0
-        p, _, _ = traj.evaluate(t, np.full(n, m))
-        np.testing.assert_allclose(p, traj.knot_poses[m, :n], atol=1e-12)
+        p, _, _ = interp.evaluate(t, np.full(n, m))
+        np.testing.assert_allclose(p, interp.knot_poses[m, :n], atol=1e-10)
+        cs = CubicSpline(t, interp.knot_poses[m, :n], bc_type="clamped")
+        tt = np.linspace(0, 10, 53)
+        np.testing.assert_allclose(interp.evaluate(tt, np.full(53, m))[1], cs(tt, 1), atol=1e-9)
 
 
-def test_starts_at_rest_and_ends_at_rest(traj):
-    m = len(traj)
-    p, v, a = traj.evaluate(np.zeros(m))
-    assert np.all(p == 0.0) and np.abs(v).max() < 1e-12
-    p_end, v_end, _ = traj.evaluate(np.full(m, 10.0))
+@pytest.mark.parametrize("which", ["traj", "interp"])
+def test_starts_at_rest_and_ends_at_rest(which, request):
+    tr = request.getfixturevalue(which)
+    m = len(tr)
+    p, v, a = tr.evaluate(np.zeros(m))
+    assert np.abs(p).max() < 1e-12 and np.abs(v).max() < 1e-10
+    if which == "traj":  # triple end control points: the acceleration is zero too (C2 with the rest)
+        assert np.abs(a).max() < 1e-9
+    p_end, v_end, _ = tr.evaluate(np.full(m, 10.0))
     np.testing.assert_allclose(v_end, 0.0, atol=1e-12)
-    # just before the end the velocity tends to zero (clamped), after it the pose holds
-    _, v_before, _ = traj.evaluate(np.full(m, 10.0 - 1e-7))
+    _, v_before, a_before = tr.evaluate(np.full(m, 10.0 - 1e-7))
     assert np.abs(v_before).max() < 1e-4
-    p_after, v_after, a_after = traj.evaluate(np.full(m, 25.0))
+    if which == "traj":
+        assert np.abs(a_before).max() < 1e-4
+        ends = np.array([tr.knot_poses[r, tr.n_knots[r] - 1] for r in range(m)])
+        np.testing.assert_allclose(p_end, ends, atol=1e-9)  # it ends at the last waypoint
+    p_after, v_after, a_after = tr.evaluate(np.full(m, 25.0))
     np.testing.assert_array_equal(p_after, p_end)
     assert np.all(v_after == 0.0) and np.all(a_after == 0.0)
-    p_neg, _, _ = traj.evaluate(np.full(m, -3.0))
+    p_neg, _, _ = tr.evaluate(np.full(m, -3.0))
     assert np.all(p_neg == 0.0)
 
 
-def test_c2_continuity_at_knots(traj):
+@pytest.mark.parametrize("which", ["traj", "interp"])
+def test_c2_continuity_at_breaks(which, request):
+    tr = request.getfixturevalue(which)
     eps = 1e-7
     worst = np.zeros(3)
-    for m in range(0, len(traj), 7):
-        n = traj.n_knots[m]
-        tk = traj.knot_times_s[m, 1 : n - 1]
-        rows = np.full(len(tk), m)
-        left = traj.evaluate(tk - eps, rows)
-        right = traj.evaluate(tk + eps, rows)
+    checked = 0
+    for m in range(0, len(tr), 7):
+        inner = tr.breaks_s[m, 1 : tr.n_segments[m]]
+        checked += len(inner)
+        rows = np.full(len(inner), m)
+        left = tr.evaluate(inner - eps, rows)
+        right = tr.evaluate(inner + eps, rows)
         for i in range(3):
-            worst[i] = max(worst[i], np.abs(left[i] - right[i]).max())
+            worst[i] = max(worst[i], np.abs(left[i] - right[i]).max(initial=0.0))
+    assert checked > 10
     # jumps would be O(1); continuous quantities differ by O(eps * next derivative)
     assert worst[0] < 1e-5 and worst[1] < 1e-4 and worst[2] < 1e-3, worst
+
+
+def test_testing_split_matches_the_papers_statistics():
+    """SPEC §4: the paper's testing set has a mean path length of 7.12 m and mean speed of 0.69 m/s."""
+    st = T.statistics(T.sample(2000, T.TEST_RANGES, np.random.default_rng(11)))["overall"]
+    assert st["mean_path_length_m"] == pytest.approx(7.12, rel=0.10)
+    assert st["mean_speed_mps"] == pytest.approx(0.69, rel=0.10)
+    assert st["max_speed_mps"] < 15.0 and st["p99_acceleration_mps2"] > 0.0
 
 
 def test_reproducible_and_seed_dependent():
@@ -93,18 +163,11 @@ def test_reproducible_and_seed_dependent():
     assert not np.array_equal(np.nan_to_num(a.knot_poses), np.nan_to_num(c.knot_poses))
 
 
-def test_evaluate_matches_per_row_scipy(traj):
-    rng = np.random.default_rng(0)
-    rows = rng.integers(0, len(traj), size=5000)
-    t = rng.uniform(0.0, 10.0, size=5000)
-    p, v, a = traj.evaluate(t, rows)
-    for m in np.unique(rows):
-        n = traj.n_knots[m]
-        cs = CubicSpline(traj.knot_times_s[m, :n], traj.knot_poses[m, :n], bc_type="clamped")
-        sel = rows == m
-        np.testing.assert_allclose(p[sel], cs(t[sel]), atol=1e-10)
-        np.testing.assert_allclose(v[sel], cs(t[sel], 1), atol=1e-9)
-        np.testing.assert_allclose(a[sel], cs(t[sel], 2), atol=1e-8)
+def test_spline_spec_rejects_bad_kind_and_degree():
+    with pytest.raises(ValueError, match="unknown trajectory kind"):
+        T.SplineSpec("bezier")
+    with pytest.raises(ValueError, match="degree"):
+        T.SplineSpec(degree=2)
 
 
 def test_more_waypoints_longer_paths():
@@ -209,8 +272,10 @@ def _write_waypoints_file(path, **override):
     tr = T.sample(5, T.TEST_RANGES, np.random.default_rng(0))
     d = {
         "format": np.array(T.FORMAT_NAME),
-        "version": np.array(1),
+        "version": np.array(T.FORMAT_VERSION),
         "kind": np.array("waypoints"),
+        "spline": np.array("approximating"),
+        "spline_degree": np.array(T.DEFAULT_DEGREE),
         "knot_times_s": tr.knot_times_s.copy(),
         "waypoints": tr.knot_poses.copy(),
         "n_waypoints": tr.n_waypoints.copy(),
@@ -233,8 +298,31 @@ def test_file_wrong_format_and_version(tmp_path):
     _write_waypoints_file(p, format=np.array("something-else"))
     with pytest.raises(T.TrajectoryFileError, match="format"):
         T.load(p)
-    _write_waypoints_file(p, version=np.array(2))
-    with pytest.raises(T.TrajectoryFileError, match="version"):
+    _write_waypoints_file(p, version=np.array(3))
+    with pytest.raises(T.TrajectoryFileError, match="unsupported version 3, expected 2"):
+        T.load(p)
+
+
+def test_old_version_file_gets_a_clear_error(tmp_path):
+    """A version-1 file (the old interpolating generator, no construction recorded) is never misread."""
+    p = tmp_path / "old.npz"
+    _write_waypoints_file(p, version=np.array(1), spline=None, spline_degree=None)
+    with pytest.raises(T.TrajectoryFileError, match=r"old\.npz: unsupported version 1, expected 2.*Regenerate"):
+        T.load(p)
+
+
+def test_file_records_the_construction(tmp_path):
+    p = tmp_path / "s.npz"
+    for spec in (T.SplineSpec(), T.SplineSpec("interpolating"), T.SplineSpec(degree=5)):
+        tr = T.sample(6, T.TEST_RANGES, np.random.default_rng(4), spline=spec)
+        T.save(p, tr)
+        with np.load(p) as z:
+            assert str(z["spline"]) == spec.kind and int(z["spline_degree"]) == spec.degree
+        back = T.load(p)
+        t = np.full(6, 3.3)
+        np.testing.assert_array_equal(back.evaluate(t)[0], tr.evaluate(t)[0])
+    _write_waypoints_file(p, spline=np.array("bezier"))
+    with pytest.raises(T.TrajectoryFileError, match="unknown trajectory kind 'bezier'"):
         T.load(p)
 
 
@@ -312,7 +400,7 @@ def test_cli_stats_json():
     st = json.loads(r.stdout)
     assert st["num"] == 200
     for block in [st["overall"], *st["per_n"].values()]:
-        for key in ("mean_path_length_m", "mean_speed_mps", "mean_curvature_per_m", "max_speed_mps", "num"):
+        for key in T.STAT_COLUMNS:
             assert key in block
     assert set(st["per_n"]) <= {str(n) for n in range(4, 17)}
     assert sum(b["num"] for b in st["per_n"].values()) == 200

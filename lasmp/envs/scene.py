@@ -15,7 +15,6 @@ velocity, so friction would not carry the robot along.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import mujoco
@@ -49,7 +48,7 @@ class PlatformGains:
 
 
 def platform_gains(cfg: PlatformCfg) -> PlatformGains:
-    """Gains that make each axis a 2nd-order system of `bandwidth_hz` at factor 1."""
+    """Gains that make each axis a 2nd-order system of natural frequency `omega_n_rad_s` at factor 1."""
     w, l, h = cfg.size_m
     m = cfg.mass_kg
     # box inertias about the CoM; the hinges pass through it
@@ -57,7 +56,7 @@ def platform_gains(cfg: PlatformCfg) -> PlatformGains:
     i_pitch = m * (w**2 + h**2) / 12.0
     i_yaw = m * (w**2 + l**2) / 12.0
     inertia = np.array([m, m, m, i_yaw, i_pitch, i_roll])
-    omega = 2.0 * math.pi * cfg.bandwidth_hz
+    omega = cfg.omega_n_rad_s
     kp = inertia * omega**2
     kd = 2.0 * cfg.damping_ratio * inertia * omega / cfg.kd_factor_ref
     return PlatformGains(kp=kp, kd=kd)
@@ -77,6 +76,9 @@ def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST  # stiff platform PD, implicit damping
     spec.option.iterations = sim.solver_iterations
     spec.option.ls_iterations = max(5, sim.solver_iterations // 2)
+    spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{sim.cone.upper()}")
+    spec.option.impratio = sim.impratio
+    spec.option.noslip_iterations = sim.noslip_iterations
     spec.visual.global_.offwidth = 1280
     spec.visual.global_.offheight = 720
 

@@ -20,14 +20,16 @@ File (``.npz``, :func:`save` / :func:`load`), bit-for-bit reproducible
     fixed date (1980-01-01 00:00:00) and permissions, each the ``np.lib.format.write_array`` bytes
     (allow_pickle=False) of one array, so the same seed and sizes give the same bytes (and sha256).
     It is still an ordinary ``np.load``-able archive. Keys: ``format`` = "lasmp-benchmark",
-    ``version`` = 1, ``seed``; the trajectories in the "waypoints" layout of the trajectory file
+    ``version`` = 2, ``seed``; the trajectories in the "waypoints" layout of the trajectory file
     format (``knot_times_s`` (M, K), ``waypoints`` (M, K, 6), NaN-padded, knot 0 = zero pose at
-    t = 0 included; ``n_waypoints`` (M,)); the robots ``robot_trunk_mass_kg`` (R,),
+    t = 0 included; ``n_waypoints`` (M,); ``spline`` and ``spline_degree``, the construction:
+    the default approximating B-spline); a version-1 file (the old interpolating splines) is
+    refused with the command that regenerates it; the robots ``robot_trunk_mass_kg`` (R,),
     ``robot_com_shift_m`` (R, 3), ``robot_foot_friction`` (R,), ``robot_joint_kp`` (R, 12),
     ``robot_joint_kd`` (R, 12), ``robot_platform_kp_factor`` (R, 6),
     ``robot_platform_kd_factor`` (R, 6). Trajectory splines are rebuilt on load (bit-identical).
-    The default set (seed 0, 10,000 x 1,024) is 9,939,086 bytes (~9.9 MB,
-    sha256 a1e4f3e9...) and takes ~6 s to generate, statistics included (one CPU).
+    The default set (seed 0, 10,000 x 1,024) is 9,939,608 bytes (~9.9 MB,
+    sha256 0e049d82...) and takes a few seconds to generate, statistics included (one CPU).
 
 Make it::
 
@@ -54,7 +56,7 @@ from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, sample_intrinsics
 
 FORMAT_NAME = "lasmp-benchmark"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: approximating B-splines, the construction recorded (spline, spline_degree)
 DEFAULT_NUM_TRAJECTORIES = 10_000
 DEFAULT_NUM_ROBOTS = 1_024
 DEFAULT_PATH = os.path.join("benchmarks", "xi_eval.npz")
@@ -69,7 +71,6 @@ ROBOT_FIELDS = {
     "robot_platform_kp_factor": ("platform_kp_factor", (6,)),
     "robot_platform_kd_factor": ("platform_kd_factor", (6,)),
 }
-TRAJ_KEYS = ("knot_times_s", "waypoints", "n_waypoints")
 
 
 class BenchmarkFileError(ValueError):
@@ -80,7 +81,7 @@ class BenchmarkFileError(ValueError):
 class Benchmark:
     """Xi_eval: M trajectories (testing ranges), R robots (testing intrinsics), the seed."""
 
-    trajectories: T.PiecewiseCubic
+    trajectories: T.PiecewisePoly
     robots: Intrinsics
     seed: int
 
@@ -120,24 +121,13 @@ def generate(
     return Benchmark(traj, robots, int(seed))
 
 
-def _trajectory_arrays(traj: T.PiecewiseCubic) -> dict[str, np.ndarray]:
-    """The "waypoints" layout of lasmp.envs.trajectories.save (which builds it inline, no helper)."""
-    if np.any(traj.end_condition != T._CLAMPED):
-        raise ValueError("benchmark trajectories must be generated (clamped waypoint splines)")
-    return {
-        "knot_times_s": np.ascontiguousarray(traj.knot_times_s, dtype=np.float64),
-        "waypoints": np.ascontiguousarray(traj.knot_poses, dtype=np.float64),
-        "n_waypoints": np.ascontiguousarray(traj.n_knots - 1, dtype=np.int64),
-    }
-
-
 def _arrays(bench: Benchmark) -> dict[str, np.ndarray]:
     out = {
         "format": np.array(FORMAT_NAME),
         "version": np.array(FORMAT_VERSION, dtype=np.int64),
         "seed": np.array(bench.seed, dtype=np.int64),
     }
-    out.update(_trajectory_arrays(bench.trajectories))
+    out.update(T.waypoint_arrays(bench.trajectories))
     for key, (name, _) in ROBOT_FIELDS.items():
         out[key] = np.ascontiguousarray(getattr(bench.robots, name), dtype=np.float64)
     return out
@@ -168,35 +158,12 @@ def load(path) -> Benchmark:
     fmt = get("format")
     if fmt.shape != () or fmt.dtype.kind != "U" or str(fmt) != FORMAT_NAME:
         raise BenchmarkFileError(f"{path}: format is {fmt!r}, expected {FORMAT_NAME!r}")
-    for key in ("version", "seed"):
-        v = get(key)
-        if v.shape != () or v.dtype.kind not in "iu":
-            raise BenchmarkFileError(f"{path}: {key!r} must be an integer scalar, got {v.dtype} {v.shape}")
-    if int(get("version")) != FORMAT_VERSION:
-        raise BenchmarkFileError(
-            f"{path}: unsupported version {int(get('version'))}, expected {FORMAT_VERSION}"
-        )
-
-    t, p, nw = (get(k) for k in TRAJ_KEYS)
-    for key, arr in (("knot_times_s", t), ("waypoints", p)):
-        if arr.dtype.kind != "f":
-            raise BenchmarkFileError(f"{path}: {key!r} must be float, got {arr.dtype}")
-    if t.ndim != 2 or t.shape[0] < 1 or p.shape != t.shape + (6,):
-        raise BenchmarkFileError(
-            f"{path}: wrong shape: 'knot_times_s' must be (M, K) and 'waypoints' (M, K, 6), "
-            f"got {t.shape} and {p.shape}"
-        )
-    if nw.dtype.kind not in "iu" or nw.shape != (t.shape[0],):
-        raise BenchmarkFileError(
-            f"{path}: wrong shape: 'n_waypoints' must be int ({t.shape[0]},), got {nw.dtype} {nw.shape}"
-        )
-    try:
-        nk = T._check_knots(t.astype(np.float64), p.astype(np.float64), path)
-    except T.TrajectoryFileError as exc:
-        raise BenchmarkFileError(str(exc)) from None
-    if np.any(nk != nw + 1):
-        raise BenchmarkFileError(f"{path}: 'n_waypoints' disagrees with the knots (NaN padding) in some rows")
-    traj = T.PiecewiseCubic.from_knots(t, p, nk, np.full(len(nk), T._CLAMPED, np.int8), nw)
+    T.check_version(get, path, FORMAT_VERSION, BenchmarkFileError,
+                    "Regenerate it with `python -m lasmp.eval.benchmark generate`.")  # fmt: skip
+    seed = get("seed")
+    if seed.shape != () or seed.dtype.kind not in "iu":
+        raise BenchmarkFileError(f"{path}: 'seed' must be an integer scalar, got {seed.dtype} {seed.shape}")
+    traj = T.waypoints_from_arrays(get, path, BenchmarkFileError)
 
     robots, r = {}, None
     for key, (name, shape) in ROBOT_FIELDS.items():

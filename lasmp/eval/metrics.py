@@ -3,9 +3,13 @@
 Definitions (every per-step quantity is counted on the steps *before* the episode's first
 collision; the collision step itself and anything after it are not counted):
 - collision: 1 if the episode ended in a collision or a fall before T, else 0.
-- height violation rate: share of counted steps with |p_body_p,z - h_des| > 0.1 m.
-- position deviation (m): mean over counted steps of ||p_body_p(t) - p_body_p(0)||, the trunk's
-  displacement in the platform frame from where it started.
+- height violation rate: share of counted steps with |p_body_p,z - h_des| > 0.1 m (h_des in the
+  platform frame, as the env resolves it from `rewards.h_des_m` and `rewards.h_des_from`).
+- position deviation (m): mean over counted steps of ||p(t) - p(0)||, p the trunk's position
+  relative to the platform in the frame POSITION_FRAME names:
+  "platform": p = p_body_p, the platform frame (it moves and turns with the platform);
+  "translating": p = p_body_w - p_plf_w, a frame that follows the platform's centre but keeps the
+  world's axes, so the platform's rotation about its centre moves the trunk in it.
 - rotation deviation (rad): mean over counted steps of the angle of R_pb(0)^T R_pb(t), with
   R_pb = R_wp^T R_wb the trunk's orientation relative to the platform.
 - power (W): mean over counted steps of sum_j max(tau_j q_dot_j, 0).
@@ -18,6 +22,9 @@ moves from one slice of the benchmark to another.
 from __future__ import annotations
 
 import numpy as np
+
+POSITION_FRAMES = ("platform", "translating")
+POSITION_FRAME = "platform"  # the reading of SPEC §12's "relative to the platform" (README, "The paper's world")
 
 METRICS = (
     "collision_rate",
@@ -48,19 +55,22 @@ class EpisodeMetrics:
         self.p0 = np.zeros((num_envs, 3))
         self.r0 = np.tile(np.eye(3), (num_envs, 1, 1))
 
-    def start(self, ids: np.ndarray, p_body_p: np.ndarray, r_pb: np.ndarray) -> None:
-        """Envs `ids` begin an episode at this relative pose."""
+    def start(self, ids: np.ndarray, p_rel: np.ndarray, r_pb: np.ndarray) -> None:
+        """Envs `ids` begin an episode at this relative pose (p_rel: position in POSITION_FRAME)."""
         for buf in (self.steps, self.violations, self.pos_dev, self.rot_dev, self.power):
             buf[ids] = 0.0
-        self.p0[ids] = p_body_p
+        self.p0[ids] = p_rel
         self.r0[ids] = r_pb
 
-    def step(self, active: np.ndarray, collision: np.ndarray, p_body_p, r_pb, tau, q_dot) -> None:
-        """Add one step of every env that is `active` and did not collide on this step."""
+    def step(self, active: np.ndarray, collision: np.ndarray, p_body_p, r_pb, tau, q_dot, p_rel=None) -> None:
+        """Add one step of every env that is `active` and did not collide on this step.
+
+        `p_rel`: the trunk's position in POSITION_FRAME for the deviation (default: p_body_p)."""
         count = active & ~collision
+        p_rel = p_body_p if p_rel is None else p_rel
         self.steps += count
         self.violations += count * (np.abs(p_body_p[:, 2] - self.h_des_m) > self.violation_m)
-        self.pos_dev += count * np.linalg.norm(p_body_p - self.p0, axis=1)
+        self.pos_dev += count * np.linalg.norm(p_rel - self.p0, axis=1)
         self.rot_dev += count * rotation_angle(self.r0, r_pb)
         self.power += count * np.maximum(tau * q_dot, 0.0).sum(axis=1)
 

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from lasmp.envs.moving_platform.domain_rand import Intrinsics
-from lasmp.eval.metrics import EpisodeMetrics
+from lasmp.eval.metrics import POSITION_FRAME, EpisodeMetrics
 
 Controller = Callable[[object], torch.Tensor]  # observations (TensorDict) -> actions (n, 12)
 
@@ -48,9 +48,10 @@ class BenchmarkSource:
         return traj, traj.n_waypoints, intrinsics_rows(self.bench.robots, robot_rows)
 
 
-def relative_pose(readout) -> tuple[np.ndarray, np.ndarray]:
-    """(p_body_p (n, 3), R_pb (n, 3, 3)) of a readout."""
-    return readout.p_body_p, np.einsum("nji,njk->nik", readout.r_wp, readout.r_wb)
+def relative_pose(readout, frame: str = POSITION_FRAME) -> tuple[np.ndarray, np.ndarray]:
+    """(trunk position relative to the platform in `frame` (n, 3), R_pb (n, 3, 3)) of a readout."""
+    p = readout.p_body_p if frame == "platform" else readout.p_body_w - readout.p_plf_w
+    return p, np.einsum("nji,njk->nik", readout.r_wp, readout.r_wb)
 
 
 def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=None, trace: bool = False,
@@ -60,12 +61,15 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
     longest episode of the first wave (episodes 0..num_envs-1, one per env)."""
     source = BenchmarkSource(bench, num_episodes, env.num_envs)
     env.episode_source = source
-    metrics = EpisodeMetrics(env.num_envs, env.cfg.rewards.h_des_m)
+    metrics = EpisodeMetrics(env.num_envs, env.h_des_p_m)
     captured: dict = {}
-    env.on_step = lambda readout, collision: captured.update(
-        p=readout.p_body_p.copy(), r=relative_pose(readout)[1], tau=readout.tau.copy(),
-        q_dot=readout.q_dot.copy(), collision=collision.copy(),
-    )  # fmt: skip
+
+    def capture(readout, collision):
+        p_rel, r_pb = relative_pose(readout)
+        captured.update(p=readout.p_body_p.copy(), p_rel=p_rel.copy(), r=r_pb, tau=readout.tau.copy(),
+                        q_dot=readout.q_dot.copy(), collision=collision.copy())  # fmt: skip
+
+    env.on_step = capture
     obs, _ = env.reset()
     metrics.start(np.arange(env.num_envs), *relative_pose(env.readout))
     episodes = {key: np.full(num_episodes, np.nan) for key in ("collision", "steps", "height_violation_rate",
@@ -84,7 +88,7 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
                     first_wave.append((ep_before, x_true.numpy().copy(), x_hat.numpy().copy()))
             obs, _, done, extras = env.step(controller(obs))
             metrics.step(active, captured["collision"], captured["p"], captured["r"], captured["tau"],
-                         captured["q_dot"])  # fmt: skip
+                         captured["q_dot"], captured["p_rel"])  # fmt: skip
             done = done.cpu().numpy()
             ids = np.flatnonzero(done & active)
             if len(ids):

@@ -74,16 +74,19 @@ class MovingPlatformEnv(BaseEnv):
             if cc.enabled and self.traj_file is None
             else None
         )
-        self.traj = trj.sample(n, self.traj_ranges, self.rng, n_waypoints=self.traj_ranges.n_waypoints_min)
+        self.traj = trj.sample(
+            n, self.traj_ranges, self.rng, n_waypoints=self.traj_ranges.n_waypoints_min, spline=tc.spline
+        )
         self.traj_level = np.full(n, -1)
 
         rc = cfg.rewards
+        self.plf_top_m = platform_top_z_m(cfg.platform)
+        self.h_des_p_m = rc.h_des_p_m(self.plf_top_m)  # desired trunk height in the platform frame
         params = RewardParams(
-            rc.sigma_center_m, rc.sigma_alignment, rc.sigma_level_rad, rc.sigma_height_m, rc.h_des_m,
+            rc.sigma_center_m, rc.sigma_alignment, rc.sigma_level_rad, rc.sigma_height_m, self.h_des_p_m,
             rc.f_tol_n, rc.t_swing_des_s, rc.t_contact_des_s,
         )  # fmt: skip
         self.rewards = RewardManager(rc.weights, params, n)
-        self.plf_top_m = platform_top_z_m(cfg.platform)
         self.plf_half_xy_m = np.array(cfg.platform.size_m[:2]) / 2.0
 
         self.action = np.zeros((n, 12))
@@ -103,9 +106,6 @@ class MovingPlatformEnv(BaseEnv):
         self.last_state: StepState | None = None
 
     # -- control -------------------------------------------------------------------------------
-    def _platform_reference(self, rows_t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        pose, vel, _ = self.traj.evaluate(rows_t_s)
-        return pose[:, POSE_TO_JOINT], vel[:, POSE_TO_JOINT]
 
     def _apply_actions(self, actions: np.ndarray) -> None:
         self.action_prev[:] = self.action
@@ -113,14 +113,17 @@ class MovingPlatformEnv(BaseEnv):
         ctrl = self.sim.ctrl
         ctrl[:, self.robot_act] = self.q_nominal + self.cfg.control.action_scale * actions
         # the kp servo's target starts at x_ref(t) and ramps to x_ref(t + dt) within the step;
-        # the damping term tracks the reference velocity at mid-step
+        # the damping term tracks the reference velocity at mid-step (or damps toward rest, without
+        # velocity feedforward)
+        n = self.num_envs
         t_s = self.episode_length_buf.numpy() * self.dt_s
-        x_now, _ = self._platform_reference(t_s)
-        x_next, _ = self._platform_reference(t_s + self.dt_s)
-        _, v_mid = self._platform_reference(t_s + 0.5 * self.dt_s)
+        times = np.concatenate([t_s, t_s + self.dt_s, t_s + 0.5 * self.dt_s])  # one evaluation for all three
+        pose, vel, _ = self.traj.evaluate(times, np.tile(np.arange(n), 3))
+        x_now, x_next = pose[:n, POSE_TO_JOINT], pose[n : 2 * n, POSE_TO_JOINT]
+        v_mid = vel[2 * n :, POSE_TO_JOINT]
         self.sim.act[:, self.plf_act_adr] = x_now
         ctrl[:, self.plf_act_pos] = (x_next - x_now) / self.dt_s
-        ctrl[:, self.plf_act_vel] = v_mid
+        ctrl[:, self.plf_act_vel] = v_mid if self.cfg.platform.velocity_feedforward else 0.0
 
     # -- evaluation ----------------------------------------------------------------------------
     def _fell(self, r: Readout) -> np.ndarray:
@@ -191,7 +194,7 @@ class MovingPlatformEnv(BaseEnv):
         return reward, collision, log
 
     # -- resets --------------------------------------------------------------------------------
-    def _next_trajectories(self, ids: np.ndarray) -> tuple[trj.PiecewiseCubic, np.ndarray]:
+    def _next_trajectories(self, ids: np.ndarray) -> tuple[trj.PiecewisePoly, np.ndarray]:
         if self.traj_file is not None:  # replay the file's rows in order, wrapping around
             rows = (self._file_cursor + np.arange(len(ids))) % len(self.traj_file)
             self._file_cursor = int((self._file_cursor + len(ids)) % len(self.traj_file))
@@ -202,7 +205,8 @@ class MovingPlatformEnv(BaseEnv):
         else:
             r = self.traj_ranges
             levels = self.rng.integers(r.n_waypoints_min, r.n_waypoints_max + 1, size=len(ids))
-        return trj.sample(len(ids), self.traj_ranges, self.rng, n_waypoints=levels), levels
+        spline = self.cfg.trajectory.spline
+        return trj.sample(len(ids), self.traj_ranges, self.rng, n_waypoints=levels, spline=spline), levels
 
     def _reset_envs(self, ids: np.ndarray, terminated: np.ndarray, timed_out: np.ndarray) -> dict:
         log = {}
@@ -235,11 +239,14 @@ class MovingPlatformEnv(BaseEnv):
         qpos = np.tile(m.qpos0, (n, 1))
         ix = self.index
         yaw = self.rng.uniform(*self.cfg.init_state.yaw_range_rad, size=n)
-        qpos[:, ix.root_qpos : ix.root_qpos + 3] = [
-            0.0,
-            0.0,
-            self.plf_top_m + self.trunk_height_m + self.cfg.init_state.foot_clearance_m,
-        ]
+        init = self.cfg.init_state
+        qpos[:, ix.root_qpos : ix.root_qpos + 2] = 0.0  # the platform's centre
+        qpos[:, ix.root_qpos + 2] = self.plf_top_m + self.trunk_height_m + init.foot_clearance_m
+        if init.xy_offset_max_m > 0:  # uniform in the disc
+            rho = init.xy_offset_max_m * np.sqrt(self.rng.uniform(size=n))
+            angle = self.rng.uniform(-np.pi, np.pi, size=n)
+            qpos[:, ix.root_qpos] = rho * np.cos(angle)
+            qpos[:, ix.root_qpos + 1] = rho * np.sin(angle)
         qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(yaw)
         qpos[:, ix.joint_qpos] = self.q_nominal
         qpos[:, ix.plf_qpos] = 0.0

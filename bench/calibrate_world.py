@@ -1,0 +1,201 @@
+"""Calibrate the open readings of the paper's world against its Stand Still row (SPEC §13).
+
+Plays Stand Still (a = 0) on the first K episodes of Xi_eval's pairing (trajectory k, robot
+k mod 1,024) in each candidate world, and scores every candidate reading of the metrics at once
+from the same steps (counted up to the first collision, as in lasmp.eval.metrics):
+- height violation with h_des = 0.37 m measured from the platform's centre (its CoM, 0.27 m above
+  the top surface) and from its top surface;
+- position deviation in the platform frame and in a frame that follows the platform's centre
+  but keeps the world's axes (translating, not rotating).
+A candidate world is a trajectory construction (kind, degree) plus env overrides (platform
+tracking, contacts, initial placement). Trajectories of a world are drawn with Xi_eval's seed
+and stream, so candidates differ only by their construction.
+
+    python bench/calibrate_world.py --episodes 2048 --worlds stiff_4hz soft_1hz --json out.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+import numpy as np
+import torch
+
+from lasmp.config import build_env_cfg
+from lasmp.envs import trajectories as T
+from lasmp.eval import benchmark as bm
+from lasmp.eval.cli import eval_env_overrides
+from lasmp.eval.metrics import rotation_angle
+from lasmp.eval.run import BenchmarkSource
+
+PAPER = {"collision": (0.612, 0.29), "height_violation": (0.142, 0.07), "position_deviation_m": (0.394, 0.04),
+         "rotation_deviation_rad": (0.182, 0.07), "power_w": (1.031, 0.17)}  # fmt: skip
+TWO_PI = 2.0 * math.pi
+
+
+def _platform(hz: float, feedforward: bool, mass_kg: float = 800.0) -> dict:
+    """Platform overrides: natural frequency `hz` at factor 1, velocity feedforward or a position drive."""
+    return {"omega_n_rad_s": TWO_PI * hz, "velocity_feedforward": feedforward, "mass_kg": mass_kg}
+
+
+FINAL = _platform(1.0 / TWO_PI, False, 1.0e5)  # the chosen world: the config defaults (lasmp/config.py)
+# name -> (trajectory construction, env overrides); the first worlds are the first readings we tried
+WORLDS = {
+    "interp_4hz": ({"kind": "interpolating"}, {"platform": _platform(4.0, True)}),
+    "deg5_4hz": ({"degree": 5}, {"platform": _platform(4.0, True)}),
+    "deg10_4hz": ({}, {"platform": _platform(4.0, True)}),
+    "deg10_1hz": ({}, {"platform": _platform(1.0, True)}),
+    "deg10_0.3hz": ({}, {"platform": _platform(0.3, True)}),
+    "deg10_4hz_noslip": ({}, {"platform": _platform(4.0, True), "sim": {"noslip_iterations": 4}}),
+    "deg10_4hz_elliptic": (
+        {},
+        {"platform": _platform(4.0, True), "sim": {"cone": "elliptic", "impratio": 10.0}},
+    ),
+    "deg10_1hz_posdrive": ({}, {"platform": _platform(1.0, False)}),
+    "deg10_0.3hz_posdrive": ({}, {"platform": _platform(0.3, False)}),
+    "deg10_0.16hz_posdrive": ({}, {"platform": _platform(1.0 / TWO_PI, False)}),
+    "deg10_0.16hz_posdrive_noslip": (
+        {},
+        {"platform": _platform(1.0 / TWO_PI, False), "sim": {"noslip_iterations": 4}},
+    ),
+    # which channels topple the standing robot: the others' control points are zeroed
+    "deg10_4hz_rollpitch_only": ({"channels": "roll pitch"}, {"platform": _platform(4.0, True)}),
+    "deg10_4hz_translation_only": ({"channels": "x y z"}, {"platform": _platform(4.0, True)}),
+    "deg10_4hz_still": ({"channels": ""}, {"platform": _platform(4.0, True)}),
+    "final": ({}, {"platform": FINAL}),
+    "final_offset_0.5m": ({}, {"platform": FINAL, "init_state": {"xy_offset_max_m": 0.5}}),
+    "final_offset_0.7m": ({}, {"platform": FINAL, "init_state": {"xy_offset_max_m": 0.7}}),
+    "final_deg5": ({"degree": 5}, {"platform": FINAL}),
+    "final_interp": ({"kind": "interpolating"}, {"platform": FINAL}),
+}
+
+
+def _merge(a: dict, b: dict) -> dict:
+    out = dict(a)
+    for k, v in b.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> dict:
+    from lasmp.envs.moving_platform.env import MovingPlatformEnv
+
+    spline_kw, overrides = WORLDS[name]
+    spline_kw = dict(spline_kw)
+    channels = spline_kw.pop("channels", None)
+    spline = T.SplineSpec(**spline_kw)
+    traj = T.sample(len(bench.trajectories), T.ranges_for_split("test"), np.random.default_rng([bench.seed, 0]),
+                    spline=spline)  # fmt: skip
+    if channels is not None:  # keep only these pose channels moving
+        keep = np.isin(T.POSE_NAMES, channels.split())
+        poses = np.where(keep, traj.knot_poses, 0.0 * traj.knot_poses)  # NaN padding stays NaN
+        traj = T.PiecewisePoly.from_knots(traj.knot_times_s, poses, traj.n_knots, traj.kind, traj.degree,
+                                          traj.n_waypoints)  # fmt: skip
+    world = bm.Benchmark(traj.subset(np.arange(episodes)), bench.robots, bench.seed)
+    stats = T.statistics(traj)["overall"]
+    cfg = build_env_cfg(_merge(eval_env_overrides(min(num_envs, episodes), 0), overrides))
+    env = MovingPlatformEnv(cfg)
+    top = env.plf_top_m
+    h_des = {"centre": cfg.rewards.h_des_m, "surface": top + cfg.rewards.h_des_m}
+    source = BenchmarkSource(world, episodes, env.num_envs)
+    env.episode_source = source
+    cap = {}
+
+    def rel(r):
+        return {"p_p": r.p_body_p.copy(), "p_t": r.p_body_w - r.p_plf_w,
+                "r_pb": np.einsum("nji,njk->nik", r.r_wp, r.r_wb), "tau": r.tau.copy(), "q_dot": r.q_dot.copy()}  # fmt: skip
+
+    env.on_step = lambda r, collision: cap.update(rel(r), collision=collision.copy())
+    env.reset()
+    n = env.num_envs
+    keys = ("steps", "viol_centre", "viol_surface", "pos_platform", "pos_translating", "rot", "power")
+    acc = {k: np.zeros(n) for k in keys}
+    start = rel(env.readout)
+    out = {k: np.full(episodes, np.nan) for k in (*keys, "collision")}
+    zeros = torch.zeros(n, 12)
+    done_count, t0 = 0, time.perf_counter()
+    while done_count < episodes:
+        ep = source.episode_of_env.copy()
+        _, _, done, extras = env.step(zeros)
+        count = (ep >= 0) & ~cap["collision"]
+        acc["steps"] += count
+        for ref, h in h_des.items():
+            acc[f"viol_{ref}"] += count * (np.abs(cap["p_p"][:, 2] - h) > 0.1)
+        acc["pos_platform"] += count * np.linalg.norm(cap["p_p"] - start["p_p"], axis=1)
+        acc["pos_translating"] += count * np.linalg.norm(cap["p_t"] - start["p_t"], axis=1)
+        acc["rot"] += count * rotation_angle(start["r_pb"], cap["r_pb"])
+        acc["power"] += count * np.maximum(cap["tau"] * cap["q_dot"], 0.0).sum(axis=1)
+        done = done.numpy()
+        ids = np.flatnonzero(done & (ep >= 0))
+        if len(ids):
+            out["collision"][ep[ids]] = ~extras["time_outs"].numpy()[ids]
+            for k in keys:
+                out[k][ep[ids]] = acc[k][ids] / (1.0 if k == "steps" else np.maximum(acc["steps"][ids], 1))
+            out["steps"][ep[ids]] = acc["steps"][ids]
+            done_count += len(ids)
+        restarted = np.flatnonzero(done)
+        if len(restarted):
+            fresh = rel(env.readout)
+            for k in start:
+                start[k][restarted] = fresh[k][restarted]
+            for k in keys:
+                acc[k][restarted] = 0.0
+    counted = out["steps"] > 0
+    mean = {k: float(np.mean(out[k][counted])) for k in keys if k != "steps"}
+    row = {
+        "world": name, "spline": {"kind": spline.kind, "degree": spline.degree, "channels": channels},
+        "overrides": overrides, "episodes": episodes,
+        "path_length_m": stats["mean_path_length_m"], "speed_mps": stats["mean_speed_mps"],
+        "collision": float(np.mean(out["collision"])), **mean,
+        "median_episode_s": float(np.median(out["steps"]) * env.dt_s), "wall_s": time.perf_counter() - t0,
+    }  # fmt: skip
+    return row
+
+
+def markdown_table(rows: list[dict]) -> str:
+    """The candidate-world table of the README from rows of `play_world` (one JSON line each)."""
+    head = ("| world | path m | speed m/s | collision | height viol. (top / centre) | "
+            "pos. dev. m (platform / translating) | rot. dev. rad | power W |")  # fmt: skip
+    lines = [head, "|" + "---|" * 8]
+    p = PAPER
+    lines.append(f"| paper, Stand Still | 7.12 | 0.69 | {p['collision'][0]} | {p['height_violation'][0]} | "
+                 f"{p['position_deviation_m'][0]} | {p['rotation_deviation_rad'][0]} | {p['power_w'][0]} |")  # fmt: skip
+    for r in rows:
+        lines.append(
+            f"| {r['world']} | {r['path_length_m']:.2f} | {r['speed_mps']:.2f} | {r['collision']:.3f} | "
+            f"{r['viol_surface']:.3f} / {r['viol_centre']:.3f} | {r['pos_platform']:.3f} / {r['pos_translating']:.3f} | "
+            f"{r['rot']:.3f} | {r['power']:.2f} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--episodes", type=int, default=2048)
+    ap.add_argument("--num-envs", type=int, default=1024)
+    ap.add_argument("--worlds", nargs="+", default=list(WORLDS), choices=list(WORLDS))
+    ap.add_argument("--json", help="append one JSON line per world to this file")
+    ap.add_argument("--table", help="print the markdown table of a --json file (last row per world) and exit")
+    args = ap.parse_args(argv)
+    if args.table:
+        with open(args.table) as f:
+            rows = {r["world"]: r for r in map(json.loads, f)}
+        print(markdown_table(list(rows.values())))
+        return 0
+    bench = bm.generate()  # Xi_eval's robots and trajectory stream (seed 0)
+    for name in args.worlds:
+        row = play_world(name, args.episodes, args.num_envs, bench)
+        print(json.dumps(row), flush=True)
+        if args.json:
+            with open(args.json, "a") as f:
+                f.write(json.dumps(row) + "\n")
+    print(f"paper (Stand Still, Table II): {json.dumps(PAPER)}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

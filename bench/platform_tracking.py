@@ -1,0 +1,96 @@
+"""How the platform follows its reference in the calibrated world, on Xi_eval's trajectories.
+
+Stand Still (a = 0) plays the first K benchmark episodes (trajectory k, robot k, with the robot's
+test-range platform gain factors, or the factors given). Every policy step until the episode ends
+(time-out or collision) records the platform's joint positions and its reference. Reported:
+- tracking error |x_plf - x_ref|: RMS and maximum, translation (m, norm over x, y, z) and rotation
+  (rad, norm over the three Euler angles);
+- the platform's own translational path length (m) and mean speed (m/s) over the episodes that
+  reach T, against the reference's over the same episodes;
+- `coverage`: the share of the K x T episode time that was recorded.
+
+    python bench/platform_tracking.py --episodes 1024 --json
+    python bench/platform_tracking.py --episodes 1024 --factors 0.5 0.01 --json   # kp and kd factors
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+import torch
+
+from lasmp.config import build_env_cfg
+from lasmp.envs.moving_platform.env import MovingPlatformEnv
+from lasmp.envs.scene import POSE_TO_JOINT
+from lasmp.eval.cli import DEFAULT_BENCHMARK, eval_env_overrides, load_or_make_benchmark
+from lasmp.eval.run import BenchmarkSource
+
+
+def measure(episodes: int, factors: tuple[float, float] | None) -> dict:
+    bench = load_or_make_benchmark(DEFAULT_BENCHMARK).subset(episodes)
+    if factors is not None:
+        bench.robots.platform_kp_factor[:] = factors[0]
+        bench.robots.platform_kd_factor[:] = factors[1]
+    env = MovingPlatformEnv(build_env_cfg(eval_env_overrides(episodes, 0)))
+    source = BenchmarkSource(bench, episodes, episodes)
+    env.episode_source = source
+    env.reset()
+    n, steps = env.num_envs, env.max_episode_length
+    live = np.ones(n, bool)
+    err_t, err_r = [], []
+    x_plf = np.zeros((steps + 1, n, 3))
+    x_ref = np.zeros((steps + 1, n, 3))
+    zeros = torch.zeros(n, 12)
+    for k in range(1, steps + 1):
+        _, _, done, extras = env.step(zeros)
+        t = np.full(n, k * env.dt_s)
+        ref = env.traj.evaluate(t)[0][:, POSE_TO_JOINT]
+        q = env.sim.qpos[:, env.index.plf_qpos]
+        done = done.numpy()
+        ended = done & live
+        record = live & ~done  # after a reset the platform restarts: stop recording that env
+        err_t.append(np.linalg.norm((q - ref)[record, :3], axis=1))
+        err_r.append(np.linalg.norm((q - ref)[record, 3:], axis=1))
+        x_plf[k, record], x_ref[k, record] = q[record, :3], ref[record, :3]
+        full = ended & extras["time_outs"].numpy()  # the time-out step: its state is the reset one
+        x_plf[k, full], x_ref[k, full] = x_plf[k - 1, full], x_ref[k - 1, full]
+        live &= ~done
+        if k == steps:
+            complete = ended & extras["time_outs"].numpy()
+    et, er = np.concatenate(err_t), np.concatenate(err_r)
+
+    def length(x):
+        return np.linalg.norm(np.diff(x, axis=0), axis=2).sum(axis=0)
+
+    t_s = steps * env.dt_s
+    return {
+        "episodes": episodes, "factors": "benchmark robots" if factors is None else list(factors),
+        "coverage": float(len(et) / (n * steps)),
+        "translation_error_rms_m": float(np.sqrt(np.mean(et**2))), "translation_error_max_m": float(et.max()),
+        "rotation_error_rms_rad": float(np.sqrt(np.mean(er**2))), "rotation_error_max_rad": float(er.max()),
+        "complete_episodes": int(complete.sum()),
+        "platform_path_length_m": float(length(x_plf)[complete].mean()),
+        "reference_path_length_m": float(length(x_ref)[complete].mean()),
+        "platform_mean_speed_mps": float(length(x_plf)[complete].mean() / t_s),
+        "reference_mean_speed_mps": float(length(x_ref)[complete].mean() / t_s),
+    }  # fmt: skip
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--episodes", type=int, default=1024)
+    ap.add_argument(
+        "--factors", type=float, nargs=2, metavar=("KP", "KD"), help="platform gain factors for all"
+    )
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    out = measure(args.episodes, None if args.factors is None else tuple(args.factors))
+    print(json.dumps(out) if args.json else "\n".join(f"{k}: {v}" for k, v in out.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

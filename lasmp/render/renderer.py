@@ -1,0 +1,177 @@
+"""Offscreen frames of one env (video, snapshot strip) in the visual-only world, with a caption.
+
+Rendering uses its own model (`lasmp.render.world.build_render_model`: the env's scene plus a
+ground grid, sky, lights and pillars) and its own MjData; each frame copies env 0's qpos/qvel
+from the physics batch into it. The physics model is never modified.
+
+`mujoco.Renderer` needs an OpenGL backend without a display: `MUJOCO_GL=egl` (a GPU driver, or
+Mesa's EGL; the default set here) or `MUJOCO_GL=osmesa` with libosmesa6 installed (slow, software).
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from lasmp.render.caption import caption_text, draw_caption
+from lasmp.render.world import build_render_model
+
+VIDEO_SIZE = (640, 480)  # width, height (px)
+SNAPSHOT_COUNT = 6
+# Follow camera: looks at the platform centre raised by LOOKAT_UP_M (the robot's mid-height), from
+# FOLLOW_DISTANCE_M away (the 0.5 m robot then covers ~2 % of the frame's pixels, the platform most
+# of its lower half); it tracks the platform's position, never its rotation, so the tilt shows. From
+# FOLLOW_ELEVATION_DEG above, a platform tilted more than ~28 deg away from the camera hides the robot
+# behind it for that moment (a higher camera shows less of the world around).
+FOLLOW_DISTANCE_M = 2.2
+FOLLOW_ELEVATION_DEG = -28.0
+FOLLOW_AZIMUTH_DEG = 135.0
+LOOKAT_UP_M = 0.3
+
+
+class RenderError(RuntimeError):
+    """A user-facing rendering problem (a missing optional package, ...); the message says what to do."""
+
+
+def select_gl_backend() -> None:
+    """Headless OpenGL for `mujoco.Renderer`: MUJOCO_GL (default egl), even if mujoco came in first.
+
+    mujoco picks its GL backend when it is imported; the env imports it long before anything is
+    rendered, usually with MUJOCO_GL unset (= GLFW, which needs a display). Switch the choice to
+    the requested headless backend then.
+    """
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    want = os.environ["MUJOCO_GL"].lower().strip()
+    from mujoco.rendering.classic import gl_context
+
+    if want in ("egl", "osmesa") and getattr(gl_context, "_MUJOCO_GL", want) != want:
+        gl_context.GLContext = importlib.import_module(f"mujoco.{want}").GLContext
+        gl_context._MUJOCO_GL = want
+
+
+def _row(x, i: int) -> np.ndarray:
+    """Row i of a per-env state array (numpy view or torch tensor) as a float64 numpy array."""
+    if hasattr(x, "detach"):
+        x = x.detach().cpu().numpy()
+    return np.asarray(x[i], dtype=np.float64)
+
+
+def copy_state(env, model, data, i: int = 0) -> None:
+    """Env i's qpos/qvel into `data` (of the render model: same layout) and its derived quantities."""
+    import mujoco
+
+    data.qpos[:] = _row(env.sim.qpos, i)
+    data.qvel[:] = _row(env.sim.qvel, i)
+    mujoco.mj_forward(model, data)
+
+
+def followed_body(model) -> int:
+    """The body the camera follows: the platform, or the trunk in a scene without one."""
+    from lasmp.robots import a1
+
+    for name in ("platform", a1.TRUNK_BODY_NAME):
+        try:
+            return model.body(name).id
+        except KeyError:
+            continue
+    return 0
+
+
+def frame_caption(env, collisions: int, i: int = 0) -> str:
+    """Env i's caption: episode time (s), N (waypoints), platform speed (m/s), collisions so far."""
+    t_s = float(env.episode_length_buf[i]) * env.dt_s
+    levels = getattr(env, "traj_level", None)
+    n = int(levels[i]) if levels is not None and levels[i] >= 0 else None
+    v_plf_w = getattr(getattr(env, "readout", None), "v_plf_w", None)
+    speed = float(np.linalg.norm(v_plf_w[i])) if v_plf_w is not None else None
+    return caption_text(t_s, n, speed, collisions)
+
+
+class EnvRenderer:
+    """Offscreen frames of env 0 in the visual-only world: a camera following the platform, or a
+    fixed world camera."""
+
+    def __init__(self, env, follow: bool = True, width: int = VIDEO_SIZE[0], height: int = VIDEO_SIZE[1]):
+        select_gl_backend()
+        import mujoco
+
+        self.env = env
+        self.model = build_render_model(env)
+        self.data = mujoco.MjData(self.model)
+        self.renderer = mujoco.Renderer(self.model, height=height, width=width)
+        self.follow = follow
+        self.body = followed_body(self.model)
+        self.lookat_up_m = LOOKAT_UP_M if self.model.body(self.body).name == "platform" else 0.0
+        cam = mujoco.MjvCamera()
+        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        if follow:
+            cam.distance, cam.elevation, cam.azimuth = (
+                FOLLOW_DISTANCE_M,
+                FOLLOW_ELEVATION_DEG,
+                FOLLOW_AZIMUTH_DEG,
+            )
+        else:  # fixed: from about (7, -7, 5.5) m at (0, 0, 2) m, so the 0..5 m platform path stays in view
+            eye, target = np.array([7.0, -7.0, 5.5]), np.array([0.0, 0.0, 2.0])
+            d = target - eye
+            cam.lookat[:] = target
+            cam.distance = float(np.linalg.norm(d))
+            cam.elevation = math.degrees(math.asin(d[2] / cam.distance))
+            cam.azimuth = math.degrees(math.atan2(d[1], d[0]))
+        self.camera = cam
+
+    def update(self) -> None:
+        """Copy env 0's current state into the render data and aim the camera."""
+        copy_state(self.env, self.model, self.data, 0)
+        if self.follow:
+            self.camera.lookat[:] = self.data.xpos[self.body] + [0.0, 0.0, self.lookat_up_m]
+        self.renderer.update_scene(self.data, self.camera)
+
+    def frame(self, caption: str | None = None) -> np.ndarray:
+        """(height, width, 3) uint8 image of env 0's current state, with `caption` drawn on top."""
+        self.update()
+        image = self.renderer.render()
+        return draw_caption(image, caption) if caption else image
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+class VideoWriter:
+    """mp4 at one frame per policy step, streamed to disk (imageio + imageio-ffmpeg)."""
+
+    def __init__(self, path: str, fps: float):
+        try:
+            import imageio.v2 as imageio
+            import imageio_ffmpeg  # noqa: F401  (the mp4 plugin's backend)
+        except ImportError as err:
+            raise RenderError(
+                f"--video needs imageio and imageio-ffmpeg ({err}); install them with: pip install -e .[video]"
+            ) from err
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self.writer = imageio.get_writer(path, fps=fps, codec="libx264", macro_block_size=16)
+        self.frames = 0
+
+    def add(self, frame: np.ndarray) -> None:
+        self.writer.append_data(frame)
+        self.frames += 1
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+def save_snapshots(frames: list[np.ndarray], path: str) -> None:
+    """The frames side by side, left to right in time, as one PNG."""
+    from matplotlib import image
+
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    image.imsave(path, np.concatenate(frames, axis=1))
+
+
+def snapshot_steps(steps: int, count: int = SNAPSHOT_COUNT) -> set[int]:
+    """Steps (after which a frame is taken) evenly spaced over the run, first and last included."""
+    return {int(s) for s in np.linspace(0, max(steps - 1, 0), count).round()}

@@ -1,0 +1,40 @@
+"""The learning-curve tool reads a run's TensorBoard scalars, plots them and summarizes windows."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from torch.utils.tensorboard import SummaryWriter
+
+from lasmp.eval import curves
+
+
+@pytest.fixture
+def run_dir(tmp_path):
+    w = SummaryWriter(str(tmp_path))
+    for it in range(20):
+        w.add_scalar("Episode/success_rate", it / 20, it)
+        w.add_scalar("Curriculum/level", 5 + it // 10, it)
+        w.add_scalar("Train/mean_reward", 2.0 * it, it)
+        w.add_scalar("Episode_Reward/task1_center", 0.1 * it, it)
+        w.add_scalar("Loss/value_function", 1.0, it)  # not a curve we summarize
+    w.close()
+    return tmp_path
+
+
+def test_windows_average_the_main_tags_and_reward_terms(run_dir, capsys):
+    out = run_dir / "curve.png"
+    assert curves.main([str(run_dir), "--out", str(out), "--json", "--every", "10"]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    windows = json.loads(capsys.readouterr().out)["windows"]
+    assert [w["iterations"] for w in windows] == [[0, 9], [10, 19]]
+    assert windows[0]["Curriculum/level"] == 5.0 and windows[1]["Curriculum/level"] == 6.0
+    assert windows[1]["Train/mean_reward"] == pytest.approx(2.0 * 14.5)
+    assert windows[0]["Episode_Reward/task1_center"] == pytest.approx(0.45)
+    assert "Loss/value_function" not in windows[0]
+
+
+def test_a_directory_without_event_files_is_an_error(tmp_path, capsys):
+    assert curves.main([str(tmp_path), "--json"]) == 2
+    assert "no TensorBoard event files" in capsys.readouterr().err

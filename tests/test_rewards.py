@@ -211,7 +211,7 @@ def test_default_weight_keys_match_registry():
 
 
 def test_default_params():
-    assert RewardParams() == RewardParams(1.2, 0.3, 0.2, 0.1, 0.47, 50.0, 0.1, 0.5)
+    assert RewardParams() == RewardParams(1.2, 0.3, 0.2, 0.1, 0.37, 50.0, 0.1, 0.5)
 
 
 def test_unknown_name_refused_with_valid_names():
@@ -283,10 +283,10 @@ def test_registry_module_attributes_match():
 
 
 def test_h_des_reading_resolves_to_the_platform_frame():
-    """h_des = 0.37 m is measured from the top surface by default (SPEC §13): 0.47 m above the CoM."""
+    """h_des = 0.37 m is measured from the platform frame's origin by default; "top" adds the 0.1 m."""
     from lasmp.config import ConfigError, RewardsCfg
 
-    assert RewardsCfg().h_des_p_m(0.1) == pytest.approx(0.47)
-    assert RewardsCfg(h_des_from="centre").h_des_p_m(0.1) == pytest.approx(0.37)
+    assert RewardsCfg().h_des_p_m(0.1) == pytest.approx(0.37)
+    assert RewardsCfg(h_des_from="top").h_des_p_m(0.1) == pytest.approx(0.47)
     with pytest.raises(ConfigError, match="h_des_from"):
         RewardsCfg(h_des_from="floor").validate("env.rewards")

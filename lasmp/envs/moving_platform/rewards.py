@@ -43,7 +43,7 @@ class RewardParams:
     sigma_alignment: float = 0.3  # k4, task2 scale of ‖u_aln‖ (mixed m/s and rad/s)
     sigma_level_rad: float = 0.2  # k6, task3 scale of trunk roll/pitch, rad
     sigma_height_m: float = 0.1  # k8, task4 height scale, m
-    h_des_m: float = 0.47  # desired trunk height in the platform frame (origin at its CoM), m
+    h_des_m: float = 0.37  # desired trunk height in the platform frame (origin at its CoM), m
     f_tol_n: float = 50.0  # contact-force tolerance per foot, N
     t_swing_des_s: float = 0.1  # desired minimal air time, s
     t_contact_des_s: float = 0.5  # desired minimal contact time, s

@@ -17,6 +17,7 @@ and stream, so candidates differ only by their construction.
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import math
 import sys
@@ -29,8 +30,8 @@ from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as T
 from lasmp.eval import benchmark as bm
 from lasmp.eval.cli import eval_env_overrides
-from lasmp.eval.metrics import rotation_angle
-from lasmp.eval.run import BenchmarkSource
+from lasmp.eval.metrics import EpisodeMetrics
+from lasmp.eval.run import BenchmarkSource, relative_pose
 
 PAPER = {"collision": (0.612, 0.29), "height_violation": (0.142, 0.07), "position_deviation_m": (0.394, 0.04),
          "rotation_deviation_rad": (0.182, 0.07), "power_w": (1.031, 0.17)}  # fmt: skip
@@ -103,47 +104,54 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
     h_des = {"centre": cfg.rewards.h_des_m, "surface": top + cfg.rewards.h_des_m}
     source = BenchmarkSource(world, episodes, env.num_envs)
     env.episode_source = source
+    # one accumulator per pair of readings, both fed the same steps: (h_des from the centre, platform
+    # frame) and (h_des from the surface, translating frame); rotation and power are the same in both
+    metrics = {"centre": EpisodeMetrics(env.num_envs, h_des["centre"]),
+               "surface": EpisodeMetrics(env.num_envs, h_des["surface"])}  # fmt: skip
+    frame = {"centre": "platform", "surface": "translating"}
     cap = {}
 
-    def rel(r):
-        return {"p_p": r.p_body_p.copy(), "p_t": r.p_body_w - r.p_plf_w,
-                "r_pb": np.einsum("nji,njk->nik", r.r_wp, r.r_wb), "tau": r.tau.copy(), "q_dot": r.q_dot.copy()}  # fmt: skip
+    def capture(readout, collision):
+        cap.update(readout=copy.deepcopy(readout), collision=collision.copy())
 
-    env.on_step = lambda r, collision: cap.update(rel(r), collision=collision.copy())
+    def start(ids, readout):
+        for ref, m in metrics.items():
+            p_rel, r_pb = relative_pose(readout, frame[ref])
+            m.start(ids, p_rel[ids], r_pb[ids])
+
+    env.on_step = capture
     env.reset()
     n = env.num_envs
+    start(np.arange(n), env.readout)
     keys = ("steps", "viol_centre", "viol_surface", "pos_platform", "pos_translating", "rot", "power")
-    acc = {k: np.zeros(n) for k in keys}
-    start = rel(env.readout)
     out = {k: np.full(episodes, np.nan) for k in (*keys, "collision")}
     zeros = torch.zeros(n, 12)
     done_count, t0 = 0, time.perf_counter()
     while done_count < episodes:
         ep = source.episode_of_env.copy()
         _, _, done, extras = env.step(zeros)
-        count = (ep >= 0) & ~cap["collision"]
-        acc["steps"] += count
-        for ref, h in h_des.items():
-            acc[f"viol_{ref}"] += count * (np.abs(cap["p_p"][:, 2] - h) > 0.1)
-        acc["pos_platform"] += count * np.linalg.norm(cap["p_p"] - start["p_p"], axis=1)
-        acc["pos_translating"] += count * np.linalg.norm(cap["p_t"] - start["p_t"], axis=1)
-        acc["rot"] += count * rotation_angle(start["r_pb"], cap["r_pb"])
-        acc["power"] += count * np.maximum(cap["tau"] * cap["q_dot"], 0.0).sum(axis=1)
+        r = cap["readout"]
+        for ref, m in metrics.items():
+            p_rel, r_pb = relative_pose(r, frame[ref])
+            m.step(ep >= 0, cap["collision"], r.p_body_p, r_pb, r.tau, r.q_dot, p_rel)
         done = done.numpy()
         ids = np.flatnonzero(done & (ep >= 0))
         if len(ids):
-            out["collision"][ep[ids]] = ~extras["time_outs"].numpy()[ids]
-            for k in keys:
-                out[k][ep[ids]] = acc[k][ids] / (1.0 if k == "steps" else np.maximum(acc["steps"][ids], 1))
-            out["steps"][ep[ids]] = acc["steps"][ids]
+            collided = ~extras["time_outs"].numpy()[ids]
+            c, s = (metrics[ref].close(ids, collided) for ref in ("centre", "surface"))
+            rows = ep[ids]
+            out["collision"][rows], out["steps"][rows] = c["collision"], c["steps"]
+            out["viol_centre"][rows], out["viol_surface"][rows] = (
+                c["height_violation_rate"],
+                s["height_violation_rate"],
+            )
+            out["pos_platform"][rows] = c["position_deviation_m"]
+            out["pos_translating"][rows] = s["position_deviation_m"]
+            out["rot"][rows], out["power"][rows] = c["rotation_deviation_rad"], c["power_w"]
             done_count += len(ids)
         restarted = np.flatnonzero(done)
         if len(restarted):
-            fresh = rel(env.readout)
-            for k in start:
-                start[k][restarted] = fresh[k][restarted]
-            for k in keys:
-                acc[k][restarted] = 0.0
+            start(restarted, env.readout)
     counted = out["steps"] > 0
     mean = {k: float(np.mean(out[k][counted])) for k in keys if k != "steps"}
     row = {

@@ -242,3 +242,5 @@ def test_relative_pose_frames():
     np.testing.assert_allclose(r_pb[0], np.eye(3), atol=1e-12)  # trunk aligned with the platform
     p, _ = relative_pose(r, "translating")
     np.testing.assert_allclose(p, [[0.0, 0.2, 0.5]])
+    with pytest.raises(ValueError, match="unknown position frame 'world'"):
+        relative_pose(r, "world")

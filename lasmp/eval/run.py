@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from lasmp.envs.moving_platform.domain_rand import Intrinsics
-from lasmp.eval.metrics import POSITION_FRAME, EpisodeMetrics
+from lasmp.eval.metrics import POSITION_FRAME, POSITION_FRAMES, EpisodeMetrics
 
 Controller = Callable[[object], torch.Tensor]  # observations (TensorDict) -> actions (n, 12)
 
@@ -50,6 +50,8 @@ class BenchmarkSource:
 
 def relative_pose(readout, frame: str = POSITION_FRAME) -> tuple[np.ndarray, np.ndarray]:
     """(trunk position relative to the platform in `frame` (n, 3), R_pb (n, 3, 3)) of a readout."""
+    if frame not in POSITION_FRAMES:
+        raise ValueError(f"unknown position frame {frame!r}; valid: {list(POSITION_FRAMES)}")
     p = readout.p_body_p if frame == "platform" else readout.p_body_w - readout.p_plf_w
     return p, np.einsum("nji,njk->nik", readout.r_wp, readout.r_wb)
 

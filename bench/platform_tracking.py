@@ -20,13 +20,12 @@ import json
 import sys
 
 import numpy as np
-import torch
 
 from lasmp.config import build_env_cfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
-from lasmp.envs.scene import POSE_TO_JOINT
 from lasmp.eval.cli import DEFAULT_BENCHMARK, eval_env_overrides, load_or_make_benchmark
 from lasmp.eval.run import BenchmarkSource
+from lasmp.eval.tracking import record_platform
 
 
 def measure(episodes: int, factors: tuple[float, float] | None) -> dict:
@@ -35,47 +34,28 @@ def measure(episodes: int, factors: tuple[float, float] | None) -> dict:
         bench.robots.platform_kp_factor[:] = factors[0]
         bench.robots.platform_kd_factor[:] = factors[1]
     env = MovingPlatformEnv(build_env_cfg(eval_env_overrides(episodes, 0)))
-    source = BenchmarkSource(bench, episodes, episodes)
-    env.episode_source = source
+    env.episode_source = BenchmarkSource(bench, episodes, episodes)
     env.reset()
-    n, steps = env.num_envs, env.max_episode_length
-    live = np.ones(n, bool)
-    err_t, err_r = [], []
-    x_plf = np.zeros((steps + 1, n, 3))
-    x_ref = np.zeros((steps + 1, n, 3))
-    zeros = torch.zeros(n, 12)
-    for k in range(1, steps + 1):
-        _, _, done, extras = env.step(zeros)
-        t = np.full(n, k * env.dt_s)
-        ref = env.traj.evaluate(t)[0][:, POSE_TO_JOINT]
-        q = env.sim.qpos[:, env.index.plf_qpos]
-        done = done.numpy()
-        ended = done & live
-        record = live & ~done  # after a reset the platform restarts: stop recording that env
-        err_t.append(np.linalg.norm((q - ref)[record, :3], axis=1))
-        err_r.append(np.linalg.norm((q - ref)[record, 3:], axis=1))
-        x_plf[k, record], x_ref[k, record] = q[record, :3], ref[record, :3]
-        full = ended & extras["time_outs"].numpy()  # the time-out step: its state is the reset one
-        x_plf[k, full], x_ref[k, full] = x_plf[k - 1, full], x_ref[k - 1, full]
-        live &= ~done
-        if k == steps:
-            complete = ended & extras["time_outs"].numpy()
-    et, er = np.concatenate(err_t), np.concatenate(err_r)
+    rec = record_platform(env)
+    err = rec["q"] - rec["ref"]
+    live = rec["live"][1:]
+    et = np.linalg.norm(err[1:, :, :3], axis=2)[live]
+    er = np.linalg.norm(err[1:, :, 3:], axis=2)[live]
+    complete = rec["timed_out"]
 
     def length(x):
         return np.linalg.norm(np.diff(x, axis=0), axis=2).sum(axis=0)
 
-    t_s = steps * env.dt_s
+    t_s = env.max_episode_length * env.dt_s
+    plf, ref = length(rec["q"][:, :, :3])[complete], length(rec["ref"][:, :, :3])[complete]
     return {
         "episodes": episodes, "factors": "benchmark robots" if factors is None else list(factors),
-        "coverage": float(len(et) / (n * steps)),
+        "coverage": float(live.mean()),
         "translation_error_rms_m": float(np.sqrt(np.mean(et**2))), "translation_error_max_m": float(et.max()),
         "rotation_error_rms_rad": float(np.sqrt(np.mean(er**2))), "rotation_error_max_rad": float(er.max()),
         "complete_episodes": int(complete.sum()),
-        "platform_path_length_m": float(length(x_plf)[complete].mean()),
-        "reference_path_length_m": float(length(x_ref)[complete].mean()),
-        "platform_mean_speed_mps": float(length(x_plf)[complete].mean() / t_s),
-        "reference_mean_speed_mps": float(length(x_ref)[complete].mean() / t_s),
+        "platform_path_length_m": float(plf.mean()), "reference_path_length_m": float(ref.mean()),
+        "platform_mean_speed_mps": float(plf.mean() / t_s), "reference_mean_speed_mps": float(ref.mean() / t_s),
     }  # fmt: skip
 
 

@@ -1,7 +1,7 @@
 """Play a trained LAS-MP policy: the logic behind `play.py`.
 
     python play.py --checkpoint PATH [--num-envs 1] [--steps 500] [--seed 0] [--video out.mp4]
-                   [--snapshots out.png] [--viewer] [--export onnx|jit --out DIR] [--trajectories FILE]
+                   [--snapshots out.png] [--viewer] [--export onnx|jit --out DIR] [--trajectories FILE | --scenario NAME]
 
 The env and the policy are rebuilt from the checkpoint's own config (never today's defaults);
 only the number of envs, the seed and (optionally) the trajectory file are overridden. The policy
@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import shutil
 import sys
 from pathlib import Path
 
@@ -49,8 +50,10 @@ from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
 # ---------------------------------------------------------------------------------------------
 # Loading
 # ---------------------------------------------------------------------------------------------
-def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | None) -> TrainCfg:
-    """The TrainCfg saved in a checkpoint, with only num_envs, seed (and trajectory file) changed."""
+def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | None,
+                   env_overrides: dict | None = None) -> TrainCfg:  # fmt: skip
+    """The TrainCfg saved in a checkpoint, with only num_envs, seed (and trajectory file, and the
+    given nested env overrides) changed."""
     if not data.get("config"):
         raise CheckpointError(f"checkpoint {data['path']} carries no config to rebuild the policy from")
     try:
@@ -62,6 +65,7 @@ def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | Non
         conf.runner.log_dir = None
         if trajectories is not None:
             conf.env.trajectory.file = str(trajectories)
+        conf.env = OmegaConf.merge(conf.env, OmegaConf.create(env_overrides or {}))
         return to_train_cfg(conf)
     except Exception as err:  # unknown/removed keys, out-of-range values: the code moved on
         raise CheckpointError(
@@ -69,7 +73,8 @@ def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | Non
         ) from err
 
 
-def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None):
+def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None,
+                       env_overrides: dict | None = None):  # fmt: skip
     """(env, policy, cfg): the checkpoint's env and its actor in deployment mode (eval, estimators only).
 
     `path` is a checkpoint file or a run directory (its latest model_<N>.pt). Raises CheckpointError
@@ -77,7 +82,7 @@ def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str
     episodes already use the checkpoint's curriculum state.
     """
     data = read_checkpoint(path)
-    cfg = checkpoint_cfg(data, num_envs, seed, trajectories)
+    cfg = checkpoint_cfg(data, num_envs, seed, trajectories, env_overrides)
     seed_everything(cfg.seed)
     env = make_env(cfg)
     with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl prints the networks
@@ -193,7 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="play.py", description="Play (and render or export) a LAS-MP policy.")
     p.add_argument("--checkpoint", required=True, help="a checkpoint file or a run directory (its latest)")
     p.add_argument("--num-envs", type=int, default=1)
-    p.add_argument("--steps", type=int, default=500, help="policy steps (50 per second)")
+    p.add_argument("--steps", type=int, default=None, help="policy steps (50 per second; default 500)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--video", help="write an mp4 of env 0 (camera following the platform)")
     p.add_argument(
@@ -204,6 +209,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--export", choices=("onnx", "jit"), help="write the deployable policy to --out")
     p.add_argument("--out", help="directory for --export")
     p.add_argument("--trajectories", help="a trajectory file (.npz) replayed instead of sampled trajectories")
+    p.add_argument("--scenario", help="a real-motion scenario (e.g. ship_sea_state_4, bus_stop_and_go) on the "
+                   "suite's close-tracking platform drive; --steps defaults to the whole scenario")  # fmt: skip
     p.add_argument(
         "--benchmark-episode",
         type=int,
@@ -215,6 +222,20 @@ def build_parser() -> argparse.ArgumentParser:
         "--benchmark", default="benchmarks/xi_eval.npz", help="the benchmark file for --benchmark-episode"
     )
     return p
+
+
+def scenario_file(name: str) -> tuple[str, dict]:
+    """(trajectory file, env overrides) that play real-motion scenario `name` as the suite does."""
+    import tempfile
+
+    from lasmp.envs.trajectories import save
+    from lasmp.eval.real_motion import suite as rm
+    from lasmp.eval.real_motion.motion import to_trajectories
+
+    (motion,) = rm.build_motions([name])
+    path = Path(tempfile.mkdtemp(prefix="lasmp-scenario-")) / f"{name}.npz"
+    save(path, to_trajectories([motion]))
+    return str(path), rm.env_overrides(motion.duration_s, rm.DEFAULT_DRIVE)
 
 
 def use_benchmark_episodes(env, path: str, first: int) -> None:
@@ -236,14 +257,27 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.export and not args.out:
         parser.error("--export needs --out DIR")
-    if args.num_envs < 1 or args.steps < 0:
+    if args.scenario and args.trajectories:
+        parser.error("give --scenario or --trajectories, not both")
+    if args.num_envs < 1 or (args.steps is not None and args.steps < 0):
         parser.error("--num-envs must be >= 1 and --steps >= 0")
     if args.viewer and not has_display():
         print("--viewer needs a display (DISPLAY or WAYLAND_DISPLAY is unset); use --video or --snapshots "
               "to render offscreen", file=sys.stderr)  # fmt: skip
         return 2
     try:
-        env, policy, _ = load_deploy_policy(args.checkpoint, args.num_envs, args.seed, args.trajectories)
+        trajectories, overrides = args.trajectories, None
+        if args.scenario:
+            trajectories, overrides = scenario_file(args.scenario)
+        try:
+            env, policy, _ = load_deploy_policy(
+                args.checkpoint, args.num_envs, args.seed, trajectories, overrides
+            )
+        finally:
+            if args.scenario:  # the env holds the motion in memory; the file was only the way in
+                shutil.rmtree(Path(trajectories).parent, ignore_errors=True)
+        if args.steps is None:
+            args.steps = env.max_episode_length if args.scenario else 500
         if args.benchmark_episode is not None:
             use_benchmark_episodes(env, args.benchmark, args.benchmark_episode)
     except (CheckpointError, TrajectoryFileError, ConfigError, ValueError) as err:

@@ -90,6 +90,11 @@ class Benchmark:
         return len(self.trajectories)
 
     @property
+    def num_episodes(self) -> int:
+        """Episodes the set defines (episode k plays trajectory k)."""
+        return len(self.trajectories)
+
+    @property
     def num_robots(self) -> int:
         return int(self.robots.trunk_mass_kg.shape[0])
 

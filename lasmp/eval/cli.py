@@ -4,9 +4,11 @@
     python evaluate.py --controller stand_still                   # PD to q_nominal, a = 0
     python evaluate.py --controller rs --checkpoint RS_PATH       # the R-S policy, zero velocity command
     python evaluate.py --controller rs_oracle --checkpoint RS_PATH  # R-S with the oracle command (below)
+    python evaluate.py --suite real_motion --controller stand_still   # ship, bus, train, lift, aircraft
     options: --benchmark FILE (default benchmarks/xi_eval.npz, made on first use)
              --trajectories FILE (any trajectory file; robots still come from the benchmark)
              --num-trajectories K (the first K episodes) --out DIR --batch-envs 1024 --seed 0
+    suite options: --robots-per-scenario R (default 64) --platform-drive close|paper --scenarios NAME ...
 
 Writes DIR/metrics.json and DIR/metrics.md (definitions: lasmp/eval/metrics.py and README).
 """
@@ -33,10 +35,24 @@ DEFAULT_BENCHMARK = Path("benchmarks") / "xi_eval.npz"
 NUM_BATCHES = 10
 
 
-def eval_env_overrides(num_envs: int, seed: int) -> dict:
-    """Evaluation: the benchmark decides trajectories and robots; no curriculum."""
-    return {"num_envs": num_envs, "seed": seed, "curriculum": {"enabled": False},
+def eval_env_overrides(num_envs: int, seed: int, extra: dict | None = None) -> dict:
+    """Evaluation: the benchmark decides trajectories and robots; no curriculum. `extra` (nested)
+    is merged on top (the real-motion suite's episode length and platform drive)."""
+    base = {"num_envs": num_envs, "seed": seed, "curriculum": {"enabled": False},
             "trajectory": {"split": "test"}, "domain_rand": {"split": "test"}}  # fmt: skip
+    return deep_merge(base, extra or {})
+
+
+def deep_merge(base: dict, top: dict) -> dict:
+    """`top` merged into a copy of `base`, recursively for nested dicts."""
+    out = dict(base)
+    for key, value in top.items():
+        out[key] = (
+            deep_merge(out[key], value)
+            if isinstance(value, dict) and isinstance(out.get(key), dict)
+            else value
+        )
+    return out
 
 
 def load_or_make_benchmark(path: Path):
@@ -50,14 +66,15 @@ def load_or_make_benchmark(path: Path):
     return bench
 
 
-def build(args):
-    """(env, controller, policy with estimators or None, method name)."""
+def build(args, extra_env: dict | None = None):
+    """(env, controller, policy with estimators or None, method name); `extra_env`: env overrides."""
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.play import load_deploy_policy
 
     n = min(args.batch_envs, args.num_trajectories)
+    overrides = eval_env_overrides(n, args.seed, extra_env)
     if args.controller == "stand_still":
-        env = MovingPlatformEnv(build_env_cfg(eval_env_overrides(n, args.seed)))
+        env = MovingPlatformEnv(build_env_cfg(overrides))
         zeros = torch.zeros(n, env.num_actions)
         return env, (lambda obs: zeros), None, "stand_still"
     _, policy, cfg = load_deploy_policy(args.checkpoint, num_envs=1, seed=args.seed)
@@ -65,7 +82,7 @@ def build(args):
         if cfg.task != "rough_static" or not policy.command_input:
             raise CheckpointError(f"--controller {args.controller} needs an R-S checkpoint (task=rough_static), "
                                   f"got task={cfg.task}")  # fmt: skip
-        env = MovingPlatformEnv(build_env_cfg(eval_env_overrides(n, args.seed)))
+        env = MovingPlatformEnv(build_env_cfg(overrides))
         command = oracle_command if args.controller == "rs_oracle" else zero_command
 
         def rs_controller(obs):
@@ -78,7 +95,7 @@ def build(args):
         raise CheckpointError(
             f"--checkpoint without --controller needs a moving_platform policy, got {cfg.task}"
         )
-    env_cfg = build_env_cfg({**_asdict(cfg.env), **eval_env_overrides(n, args.seed)})
+    env_cfg = build_env_cfg(deep_merge(_asdict(cfg.env), overrides))
     env = MovingPlatformEnv(env_cfg)
     return env, (lambda obs: policy(obs)), policy, f"LAS-MP checkpoint {args.checkpoint} ({cfg.policy.name})"
 
@@ -128,11 +145,26 @@ def main(argv=None) -> int:
         "--plot-estimates", action="store_true", help="estimated vs true x_exp over episode 0 (PNG)"
     )
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--suite", choices=["real_motion"], help="play a scenario suite instead of the benchmark")
+    p.add_argument("--scenarios", nargs="+", help="with --suite: only these scenarios (default: all)")
+    p.add_argument("--robots-per-scenario", type=int, default=None,
+                   help="with --suite: the benchmark's first R robots play every scenario (default 64)")  # fmt: skip
+    p.add_argument("--platform-drive", choices=["close", "paper"], default=None,
+                   help="with --suite: the platform follows the scenario closely (default) or through the "
+                        "paper's soft drive")  # fmt: skip
     args = p.parse_args(argv)
     if args.controller == "stand_still" and args.checkpoint:
         p.error("--controller stand_still takes no --checkpoint")
     if args.controller != "stand_still" and not args.checkpoint:
         p.error("give --checkpoint PATH (a LAS-MP policy, or an R-S policy with --controller rs|rs_oracle)")
+    if args.batch_envs < 1:
+        p.error(f"--batch-envs must be >= 1, got {args.batch_envs}")
+    if args.suite:
+        return run_suite(args, p)
+    for flag, value in (("--scenarios", args.scenarios), ("--robots-per-scenario", args.robots_per_scenario),
+                        ("--platform-drive", args.platform_drive)):  # fmt: skip
+        if value is not None:
+            p.error(f"{flag} needs --suite")
     try:
         bench = load_or_make_benchmark(args.benchmark)
         if args.trajectories is not None:
@@ -141,13 +173,11 @@ def main(argv=None) -> int:
         args.num_trajectories = total if args.num_trajectories is None else args.num_trajectories
         if not 1 <= args.num_trajectories <= total:
             p.error(f"--num-trajectories must be in [1, {total}], got {args.num_trajectories}")
-        if args.batch_envs < 1:
-            p.error(f"--batch-envs must be >= 1, got {args.batch_envs}")
         env, controller, policy, method = build(args)
     except (CheckpointError, bm.BenchmarkFileError, trj.TrajectoryFileError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    out_dir = args.out or Path("eval") / (args.controller or Path(str(args.checkpoint)).name)
+    out_dir = args.out or Path("eval") / method_dir(args)
     if args.plot_estimates and policy is None:
         p.error("--plot-estimates needs --checkpoint (a policy with estimators)")
     run = run_benchmark(
@@ -170,5 +200,57 @@ def main(argv=None) -> int:
         plot_estimates(run["trace"], policy.estimation_names, env.dt_s, out_dir / "estimates.png")
         result["estimates_plot_episode"] = run["trace"]["episode"]
         write_results(out_dir, result)
+    print((out_dir / "metrics.md").read_text())
+    return 0
+
+
+def method_dir(args) -> str:
+    return args.controller or Path(str(args.checkpoint)).name
+
+
+def run_suite(args, p) -> int:
+    """`--suite real_motion`: every scenario with the benchmark's first R robots (lasmp.eval.real_motion)."""
+    from lasmp.eval.real_motion import suite as rm
+
+    for flag, value in (("--trajectories", args.trajectories), ("--num-trajectories", args.num_trajectories),
+                        ("--plot-estimates", args.plot_estimates or None)):  # fmt: skip
+        if value is not None:
+            p.error(f"{flag} does not apply to --suite")
+    drive = args.platform_drive or rm.DEFAULT_DRIVE
+    robots = args.robots_per_scenario or rm.DEFAULT_ROBOTS_PER_SCENARIO
+    try:
+        names = rm.scenario_names(args.scenarios)
+        bench = load_or_make_benchmark(args.benchmark)
+        motions = rm.build_motions(names)
+        episodes = rm.make_episodes(motions, bench.robots, robots)
+        duration_s = max(m.duration_s for m in motions)
+        extra = rm.env_overrides(duration_s, drive)
+        args.num_trajectories = episodes.num_episodes
+        env, controller, policy, method = build(args, extra)
+    except (CheckpointError, bm.BenchmarkFileError, ValueError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    out_dir = args.out or Path("eval") / rm.SUITE_NAME / method_dir(args)
+    tracking = rm.platform_tracking(episodes, eval_env_overrides(len(names), args.seed, extra))
+    run = run_benchmark(env, controller, episodes, episodes.num_episodes, policy=policy)
+    per_episode = run["episodes"]
+    result = {
+        "method": method,
+        "suite": rm.SUITE_NAME,
+        "benchmark_robots": str(args.benchmark),
+        "robots_per_scenario": robots,
+        "duration_s": duration_s,
+        "platform_drive": drive,
+        "platform_drive_overrides": rm.PLATFORM_DRIVES[drive],
+        "num_episodes": episodes.num_episodes,
+        "scenarios": rm.per_scenario(episodes, per_episode),
+        "overall": summarize(per_episode, len(names)),
+        "platform_tracking": tracking,
+        "reference_motion": {m.name: rm.motion_summary(m) for m in motions},
+        "wall_time_s": run["wall_time_s"],
+    }
+    if "estimator" in run:
+        result["estimator"] = run["estimator"]
+    write_results(out_dir, result, rm.markdown)
     print((out_dir / "metrics.md").read_text())
     return 0

@@ -51,9 +51,10 @@ def markdown(result: dict) -> str:
     return "\n".join(lines)
 
 
-def write_results(out_dir: Path, result: dict) -> None:
+def write_results(out_dir: Path, result: dict, render=markdown) -> None:
+    """`metrics.json` and `metrics.md` (from `render(result)`), each written atomically."""
     atomic_write_text(out_dir / "metrics.json", json.dumps(result, indent=2) + "\n")
-    atomic_write_text(out_dir / "metrics.md", markdown(result))
+    atomic_write_text(out_dir / "metrics.md", render(result))
 
 
 def plot_estimates(trace: dict, names: tuple[str, ...], dt_s: float, path: Path) -> None:

@@ -26,11 +26,15 @@ def intrinsics_rows(p: Intrinsics, rows: np.ndarray) -> Intrinsics:
 
 
 class BenchmarkSource:
-    """The env's episode source: benchmark episodes in order."""
+    """The env's episode source: benchmark episodes in order.
+
+    `bench` is anything with `trajectories`, `robots`, `num_episodes` and `pairing(episodes)` ->
+    (trajectory rows, robot rows): Xi_eval (:class:`lasmp.eval.benchmark.Benchmark`) or the
+    real-motion suite (:class:`lasmp.eval.real_motion.suite.SuiteEpisodes`)."""
 
     def __init__(self, bench, num_episodes: int, num_envs: int):
-        if not 1 <= num_episodes <= len(bench.trajectories):
-            raise ValueError(f"num_episodes must be in [1, {len(bench.trajectories)}], got {num_episodes}")
+        if not 1 <= num_episodes <= bench.num_episodes:
+            raise ValueError(f"num_episodes must be in [1, {bench.num_episodes}], got {num_episodes}")
         self.bench = bench
         self.num_episodes = num_episodes
         self.next_episode = 0

@@ -1,0 +1,119 @@
+"""The common currency of the real-motion scenarios: a platform motion sampled on a uniform grid.
+
+Every generator in this package returns a :class:`Motion`: the pose of the platform (the 2 x 2 m
+patch of deck or floor the robot stands on) over time, in the trajectory convention of
+:mod:`lasmp.envs.trajectories`: ``[x, y, z, roll, pitch, yaw]`` in m and rad, relative to the
+platform's initial pose (so ``pose[0]`` is all zeros), world z up, rotations composed as
+``R = Rz(yaw) Ry(pitch) Rx(roll)``. :func:`deck_pose` turns the motion of a vehicle's centre of
+gravity into the motion of a deck point away from it (the lever arm), which is what a robot on a
+ship's deck or a bus floor rides.
+
+A suite of motions is written as a "samples" trajectory file (:func:`to_trajectories`, then
+:func:`lasmp.envs.trajectories.save`), which the benchmark runner plays like any other file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from lasmp.envs import trajectories as trj
+
+DEFAULT_DT_S = 0.01  # 100 Hz samples: content up to ~20 Hz survives the cubic spline through them
+DEFAULT_DURATION_S = 20.0  # every scenario of the suite lasts this long (the issue asks >= 10 s)
+
+
+@dataclass
+class Motion:
+    """One platform motion: ``t_s`` (K,) uniform from 0, ``pose`` (K, 6) with ``pose[0] == 0``.
+
+    ``params`` holds the parameters that made it (JSON-serialisable; stored in the file's meta),
+    ``notes`` says how the real motion was fitted to the platform world, if it was.
+    """
+
+    name: str
+    t_s: np.ndarray
+    pose: np.ndarray
+    params: dict = field(default_factory=dict)
+    notes: str = ""
+
+    def __post_init__(self):
+        self.t_s = np.asarray(self.t_s, dtype=np.float64)
+        self.pose = np.asarray(self.pose, dtype=np.float64)
+        if self.t_s.ndim != 1 or self.pose.shape != (len(self.t_s), 6):
+            raise ValueError(
+                f"{self.name}: t_s must be (K,) and pose (K, 6), got {self.t_s.shape}, {self.pose.shape}"
+            )
+        if not np.all(np.isfinite(self.pose)):
+            raise ValueError(f"{self.name}: non-finite pose")
+        if np.any(np.abs(self.pose[0]) > 1e-9):
+            raise ValueError(
+                f"{self.name}: pose[0] must be the initial pose (zeros), got {self.pose[0].tolist()}"
+            )
+
+    @property
+    def dt_s(self) -> float:
+        return float(self.t_s[1] - self.t_s[0])
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1])
+
+
+def time_grid(duration_s: float, dt_s: float = DEFAULT_DT_S) -> np.ndarray:
+    """Uniform times 0, dt, ..., duration (inclusive), s."""
+    if duration_s <= 0 or dt_s <= 0:
+        raise ValueError(f"duration_s and dt_s must be positive, got {duration_s}, {dt_s}")
+    n = int(round(duration_s / dt_s))
+    return np.arange(n + 1) * dt_s
+
+
+def deck_pose(p_cg_w: np.ndarray, euler_zyx: np.ndarray, r_deck_b: np.ndarray) -> np.ndarray:
+    """Pose (K, 6) of a deck point rigidly attached to a vehicle, relative to its initial pose.
+
+    p_cg_w (K, 3): the vehicle's centre of gravity in the world, m; euler_zyx (K, 3): the vehicle's
+    [roll, pitch, yaw], rad (R = Rz Ry Rx); r_deck_b (3,): the deck point in the vehicle's body
+    frame, m (e.g. 30 m forward of a ship's CG). Rotation about the CG moves the deck point by
+    R r - R0 r: that lever arm is why a point away from the CG heaves more than the CG does.
+    Assumes the vehicle's initial attitude is level (euler_zyx[0] == 0), so the platform's initial
+    pose is the zero pose.
+    """
+    p = np.asarray(p_cg_w, dtype=np.float64)
+    e = np.asarray(euler_zyx, dtype=np.float64)
+    r = np.asarray(r_deck_b, dtype=np.float64)
+    if np.any(np.abs(e[0]) > 1e-9):
+        raise ValueError(f"deck_pose: the initial attitude must be level, got {e[0].tolist()}")
+    rot = Rotation.from_euler("ZYX", e[:, ::-1])  # intrinsic z-y-x: Rz(yaw) Ry(pitch) Rx(roll)
+    p_deck = p + rot.apply(r)
+    out = np.empty((len(p), 6))
+    out[:, :3] = p_deck - p_deck[0]
+    out[:, 3:] = e
+    return out
+
+
+def to_trajectories(motions: list[Motion]) -> trj.PiecewisePoly:
+    """The motions as one "samples" trajectory set (rows in order; NaN-padded if lengths differ)."""
+    if not motions:
+        raise ValueError("to_trajectories: no motions")
+    k = max(len(m.t_s) for m in motions)
+    t = np.full((len(motions), k), np.nan)
+    p = np.full((len(motions), k, 6), np.nan)
+    for i, m in enumerate(motions):
+        t[i, : len(m.t_s)] = m.t_s
+        p[i, : len(m.t_s)] = m.pose
+    nk = np.array([len(m.t_s) for m in motions])
+    if np.all(nk == k):
+        traj = trj.from_samples(t[0], p, where="real-motion suite")
+    else:
+        traj = trj.PiecewisePoly.from_knots(t, p, nk, trj.SAMPLES, 3, np.full(len(motions), -1))
+    traj.meta = {"scenarios": [{"name": m.name, "params": m.params, "notes": m.notes} for m in motions]}
+    return traj
+
+
+def derivatives(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """(velocity, acceleration) (K, 6) of a motion by central differences on its grid."""
+    v = np.gradient(motion.pose, motion.t_s, axis=0)
+    a = np.gradient(v, motion.t_s, axis=0)
+    return v, a

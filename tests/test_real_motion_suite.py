@@ -1,0 +1,166 @@
+"""The real-motion suite: scenarios, episodes, the platform drive, the evaluate.py and module CLIs."""
+
+import json
+
+import numpy as np
+import pytest
+
+from lasmp.envs import trajectories as trj
+from lasmp.eval import benchmark as bm
+from lasmp.eval.cli import eval_env_overrides
+from lasmp.eval.cli import main as evaluate_main
+from lasmp.eval.metrics import METRICS
+from lasmp.eval.real_motion import suite as rm
+from lasmp.eval.real_motion.__main__ import main as suite_main
+from lasmp.eval.real_motion.motion import DEFAULT_DURATION_S, Motion, deck_pose, time_grid, to_trajectories
+
+QUICK = ["lift_up", "bus_emergency_brake"]
+
+
+@pytest.fixture(scope="module")
+def small_bench(tmp_path_factory):
+    path = tmp_path_factory.mktemp("bench") / "xi.npz"
+    bm.save(path, bm.generate(num_trajectories=4, num_robots=8, seed=0))
+    return path
+
+
+def test_every_scenario_builds_a_valid_motion():
+    motions = rm.build_motions()
+    assert [m.name for m in motions] == list(rm.SCENARIOS)
+    for m in motions:
+        assert m.duration_s >= 10.0, m.name
+        assert np.all(np.isfinite(m.pose)) and np.allclose(m.pose[0], 0.0), m.name
+        assert np.all(np.abs(m.pose[:, 5]) <= 2.6), f"{m.name}: yaw beyond the platform world's range"
+        s = rm.motion_summary(m)
+        assert s["acc_max_mps2"] > 0.0, f"{m.name} does not move"
+
+
+def test_scenario_names_are_checked():
+    with pytest.raises(ValueError, match="unknown scenario.*'boat'"):
+        rm.scenario_names(["boat"])
+    with pytest.raises(ValueError, match="no scenario"):
+        rm.scenario_names([])
+    assert rm.scenario_names(None) == list(rm.SCENARIOS)
+
+
+def test_episodes_pair_every_scenario_with_the_same_robots(small_bench):
+    bench = bm.load(small_bench)
+    ep = rm.make_episodes(rm.build_motions(QUICK), bench.robots, 3)
+    assert ep.num_episodes == 6 and ep.robots_per_scenario == 3
+    scen, robot = ep.pairing(np.arange(6))
+    assert scen.tolist() == [0, 0, 0, 1, 1, 1] and robot.tolist() == [0, 1, 2, 0, 1, 2]
+    np.testing.assert_array_equal(ep.robots.trunk_mass_kg, bench.robots.trunk_mass_kg[:3])
+    with pytest.raises(IndexError):
+        ep.pairing([6])
+    with pytest.raises(ValueError, match=r"robots per scenario must be in \[1, 8\]"):
+        rm.make_episodes(rm.build_motions(QUICK), bench.robots, 9)
+
+
+def test_suite_overrides_reach_the_env_config():
+    from lasmp.config import build_env_cfg
+
+    cfg = build_env_cfg(eval_env_overrides(2, 0, rm.env_overrides(20.0, "close")))
+    assert cfg.trajectory.duration_s == 20.0 and cfg.trajectory.split == "test"  # merged, not replaced
+    assert cfg.platform.velocity_feedforward and cfg.platform.omega_n_rad_s == pytest.approx(25.13)
+    assert (
+        build_env_cfg(eval_env_overrides(2, 0, rm.env_overrides(20.0, "paper"))).platform.omega_n_rad_s == 1.0
+    )
+    with pytest.raises(ValueError, match="unknown platform drive 'stiff'"):
+        rm.env_overrides(20.0, "stiff")
+
+
+def test_close_drive_follows_the_scenario_and_the_paper_drive_filters_it(small_bench):
+    bench = bm.load(small_bench)
+    name = "lift_emergency_stop"
+    ep = rm.make_episodes(rm.build_motions([name]), bench.robots, 1)
+    close = rm.platform_tracking(ep, eval_env_overrides(1, 0, rm.env_overrides(DEFAULT_DURATION_S, "close")))[
+        name
+    ]
+    paper = rm.platform_tracking(ep, eval_env_overrides(1, 0, rm.env_overrides(DEFAULT_DURATION_S, "paper")))[
+        name
+    ]
+    assert close["recorded_s"] == paper["recorded_s"] == pytest.approx(DEFAULT_DURATION_S - 0.02)
+    assert close["translation_error_rms_m"] < 0.01 and paper["translation_error_rms_m"] > 0.3
+    # the close drive reproduces the reference's acceleration; the soft drive low-passes the stop away
+    assert close["platform_acc_rms_mps2"] == pytest.approx(close["reference_acc_rms_mps2"], rel=0.15)
+    assert paper["platform_acc_rms_mps2"] < 0.5 * paper["reference_acc_rms_mps2"]
+
+
+def test_evaluate_suite_end_to_end(tmp_path, small_bench, capsys):
+    out = tmp_path / "suite"
+    rc = evaluate_main(["--suite", "real_motion", "--controller", "stand_still", "--scenarios", *QUICK,
+                        "--robots-per-scenario", "2", "--benchmark", str(small_bench), "--out", str(out)])  # fmt: skip
+    assert rc == 0
+    result = json.loads((out / "metrics.json").read_text())
+    assert result["suite"] == "real_motion" and result["num_episodes"] == 4
+    assert result["platform_drive"] == "close" and result["duration_s"] == DEFAULT_DURATION_S
+    assert list(result["scenarios"]) == QUICK
+    for name in QUICK:
+        s = result["scenarios"][name]
+        assert set(s["metrics"]) == set(METRICS) and s["num_episodes"] == 2
+        assert 0.0 <= s["metrics"]["collision_rate"]["mean"] <= 1.0
+        assert s["mean_episode_steps"] <= DEFAULT_DURATION_S / 0.02 + 1
+        assert result["platform_tracking"][name]["reference_acc_rms_mps2"] > 0.0
+        assert result["reference_motion"][name]["acc_max_mps2"] > 0.0
+    md = (out / "metrics.md").read_text()
+    assert "| lift_up |" in md and "| bus_emergency_brake |" in md and "How the platform followed" in md
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--scenarios", "lift_up"], "--scenarios needs --suite"),
+        (
+            ["--suite", "real_motion", "--num-trajectories", "3"],
+            "--num-trajectories does not apply to --suite",
+        ),
+    ],
+)
+def test_evaluate_suite_bad_flags(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        evaluate_main(["--controller", "stand_still", *argv])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_evaluate_suite_unknown_scenario(small_bench, capsys):
+    rc = evaluate_main(["--suite", "real_motion", "--controller", "stand_still", "--scenarios", "rocket",
+                        "--benchmark", str(small_bench)])  # fmt: skip
+    assert rc == 2 and "unknown scenario(s) ['rocket']" in capsys.readouterr().err
+
+
+def test_module_cli_generates_a_loadable_file_and_plots(tmp_path, capsys):
+    path = tmp_path / "rm.npz"
+    assert suite_main(["generate", "--out", str(path), "--scenarios", *QUICK]) == 0
+    traj = trj.load(path)
+    assert len(traj) == 2 and [s["name"] for s in traj.meta["scenarios"]] == QUICK
+    motions = rm.build_motions(QUICK)
+    for row, m in enumerate(motions):
+        got = traj.evaluate(m.t_s, np.full(len(m.t_s), row))[0]
+        np.testing.assert_allclose(got, m.pose, atol=1e-9)
+    assert suite_main(["plot", "--out", str(tmp_path / "fig"), "--scenarios", "lift_up"]) == 0
+    assert (tmp_path / "fig" / "lift_up.png").stat().st_size > 10_000
+    capsys.readouterr()
+    assert suite_main(["stats", "--json", "--scenarios", "lift_up"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats["lift_up"]["z_range_m"] > 1.0  # the car travels
+
+
+def test_deck_pose_adds_the_lever_arm():
+    t = time_grid(10.0)
+    euler = np.zeros((len(t), 3))
+    euler[:, 1] = 0.05 * np.sin(t)  # pitch, nose down positive about y
+    pose = deck_pose(np.zeros((len(t), 3)), euler, [20.0, 0.0, 0.0])
+    # a point 20 m forward goes down by 20 sin(pitch) when the nose pitches down (R_y(+) maps x to -z)
+    np.testing.assert_allclose(pose[:, 2], -20.0 * np.sin(euler[:, 1]), atol=1e-12)
+    assert np.allclose(pose[:, 3:], euler)
+    with pytest.raises(ValueError, match="initial attitude must be level"):
+        deck_pose(np.zeros((2, 3)), np.full((2, 3), 0.1), [1.0, 0, 0])
+
+
+def test_motion_rejects_a_motion_that_does_not_start_at_rest_pose():
+    t = time_grid(1.0)
+    with pytest.raises(ValueError, match="pose\\[0\\] must be the initial pose"):
+        Motion("x", t, np.ones((len(t), 6)))
+    m = Motion("y", t, np.zeros((len(t), 6)))
+    assert to_trajectories([m]).meta["scenarios"][0]["name"] == "y"

@@ -181,6 +181,34 @@ def test_benchmark_episode_plays_that_trajectory_and_robot(run_dir, tmp_path, ca
     assert "--benchmark-episode must be in [0, 5]" in capsys.readouterr().err
 
 
+def test_scenario_plays_the_real_motion_on_the_close_drive(run_dir, capsys, monkeypatch):
+    import lasmp.play as play
+    from lasmp.eval.real_motion import suite as rm
+
+    seen = {}
+    real_load = play.load_deploy_policy
+
+    def spy(*args):
+        out = real_load(*args)
+        seen.update(env=out[0], file=args[3])
+        return out
+
+    monkeypatch.setattr(play, "load_deploy_policy", spy)
+    assert main(["--checkpoint", str(run_dir), "--scenario", "lift_up", "--steps", "3"]) == 0
+    assert "played 3 steps x 1 envs" in capsys.readouterr().out
+    env = seen["env"]
+    (lift,) = rm.build_motions(["lift_up"])
+    assert env.max_episode_length == round(lift.duration_s / env.dt_s)  # the scenario's length, not 10 s
+    assert env.cfg.platform.velocity_feedforward and env.cfg.platform.omega_n_rad_s == pytest.approx(25.13)
+    pose, _, _ = env.traj.evaluate(np.array([8.0]))
+    np.testing.assert_allclose(pose[0], lift.pose[800], atol=1e-9)
+    assert not Path(seen["file"]).exists()  # the temporary file is removed once loaded
+    assert main(["--checkpoint", str(run_dir), "--scenario", "rocket"]) == 2
+    assert "unknown scenario(s) ['rocket']" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["--checkpoint", str(run_dir), "--scenario", "lift_up", "--trajectories", "x.npz"])
+
+
 # ---------------------------------------------------------------------------------------------
 # The visual-only render world
 # ---------------------------------------------------------------------------------------------

@@ -12,9 +12,13 @@ register_configs()
 
 @hydra.main(version_base="1.3", config_path="cfg", config_name="config")
 def main(cfg) -> None:
+    from lasmp.algo.runner import TrainingInterrupted
     from lasmp.train import train
 
-    train(cfg)
+    try:
+        train(cfg)
+    except TrainingInterrupted as stop:  # checkpoint written and resume command printed
+        raise SystemExit(128 + stop.signum) from None
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ import torch
 
 from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as T
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.eval import benchmark as bm
 from lasmp.eval.cli import eval_env_overrides
 from lasmp.eval.metrics import EpisodeMetrics
@@ -43,7 +44,8 @@ def _platform(hz: float, feedforward: bool, mass_kg: float = 800.0) -> dict:
     return {"omega_n_rad_s": TWO_PI * hz, "velocity_feedforward": feedforward, "mass_kg": mass_kg}
 
 
-FINAL = _platform(1.0 / TWO_PI, False, 1.0e5)  # the chosen world: the config defaults (lasmp/config.py)
+# the chosen world: the config defaults (lasmp/envs/moving_platform/cfg.py: PlatformCfg)
+FINAL = _platform(1.0 / TWO_PI, False, 1.0e5)
 # name -> (trajectory construction, env overrides); the first worlds are the first readings we tried
 WORLDS = {
     "interp_4hz": ({"kind": "interpolating"}, {"platform": _platform(4.0, True)}),
@@ -98,7 +100,8 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
                                           traj.n_waypoints)  # fmt: skip
     world = bm.Benchmark(traj.subset(np.arange(episodes)), bench.robots, bench.seed)
     stats = T.statistics(traj)["overall"]
-    cfg = build_env_cfg(_merge(eval_env_overrides(min(num_envs, episodes), 0), overrides))
+    env_overrides = _merge(eval_env_overrides(min(num_envs, episodes), 0), overrides)
+    cfg = build_env_cfg(env_overrides, schema=MovingPlatformCfg)
     env = MovingPlatformEnv(cfg)
     top = env.plf_top_m
     h_des = {"centre": cfg.rewards.h_des_m, "surface": top + cfg.rewards.h_des_m}

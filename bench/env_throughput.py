@@ -34,10 +34,10 @@ def measure_env(env: MovingPlatformEnv, steps: int, snapshots: list | None = Non
     if snapshots is not None:  # integration state (qpos, qvel, act, ctrl, warm start) as each step sees it
         every = max(1, steps // 50)
 
-        def recording_step(nstep):
+        def recording_step(nstep, ids=None):
             if len(snapshots) < 50 and env.episode_length_buf[0] % every == 0:
                 snapshots.append(env.sim.batch.state.copy())
-            return physics_step(nstep)
+            return physics_step(nstep, ids)
 
         env.sim.step = recording_step
     start = time.perf_counter()

@@ -21,7 +21,6 @@ import sys
 
 import numpy as np
 
-from lasmp.config import build_env_cfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.eval.cli import DEFAULT_BENCHMARK, eval_env_overrides, load_or_make_benchmark
 from lasmp.eval.run import BenchmarkSource
@@ -33,7 +32,7 @@ def measure(episodes: int, factors: tuple[float, float] | None) -> dict:
     if factors is not None:
         bench.robots.platform_kp_factor[:] = factors[0]
         bench.robots.platform_kd_factor[:] = factors[1]
-    env = MovingPlatformEnv(build_env_cfg(eval_env_overrides(episodes, 0)))
+    env = MovingPlatformEnv(eval_env_overrides(episodes, 0))
     env.episode_source = BenchmarkSource(bench, episodes, episodes)
     env.reset()
     rec = record_platform(env)

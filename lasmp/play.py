@@ -27,9 +27,9 @@ import sys
 from pathlib import Path
 
 import torch
-from omegaconf import OmegaConf
 
-from lasmp.algo.runner import CheckpointError, LasmpRunner, read_checkpoint
+from lasmp.algo.checkpoint import CheckpointError, checkpoint_cfg, read_checkpoint
+from lasmp.algo.runner import LasmpRunner
 from lasmp.atomic import atomic_write_with
 from lasmp.config import ConfigError
 from lasmp.envs.trajectories import TrajectoryFileError
@@ -43,36 +43,13 @@ from lasmp.render.renderer import (
     snapshot_steps,
 )
 from lasmp.render.viewer import Viewer, has_display
-from lasmp.train import make_env, seed_everything, to_train_cfg
-from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
+from lasmp.train import make_env, seed_everything
+from lasmp.train_cfg import rsl_rl_cfg
 
 
 # ---------------------------------------------------------------------------------------------
 # Loading
 # ---------------------------------------------------------------------------------------------
-def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | None,
-                   env_overrides: dict | None = None) -> TrainCfg:  # fmt: skip
-    """The TrainCfg saved in a checkpoint, with only num_envs, seed (and trajectory file, and the
-    given nested env overrides) changed."""
-    if not data.get("config"):
-        raise CheckpointError(f"checkpoint {data['path']} carries no config to rebuild the policy from")
-    try:
-        conf = OmegaConf.create(data["config"])
-        conf.env.num_envs = int(num_envs)
-        conf.seed = int(seed)
-        conf.device = "cpu"
-        conf.resume = None
-        conf.runner.log_dir = None
-        if trajectories is not None:
-            conf.env.trajectory.file = str(trajectories)
-        conf.env = OmegaConf.merge(conf.env, OmegaConf.create(env_overrides or {}))
-        return to_train_cfg(conf)
-    except Exception as err:  # unknown/removed keys, out-of-range values: the code moved on
-        raise CheckpointError(
-            f"checkpoint {data['path']} has a config this code cannot rebuild: {err}"
-        ) from err
-
-
 def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None,
                        env_overrides: dict | None = None):  # fmt: skip
     """(env, policy, cfg): the checkpoint's env and its actor in deployment mode (eval, estimators only).

@@ -10,7 +10,8 @@ from pathlib import Path
 import torch
 from omegaconf import OmegaConf
 
-from lasmp.algo.runner import LasmpRunner, read_checkpoint
+from lasmp.algo.checkpoint import read_checkpoint
+from lasmp.algo.runner import LasmpRunner, TrainingInterrupted
 from lasmp.config import ConfigError, build_env_cfg
 from lasmp.train_cfg import TrainCfg, env_schema, rsl_rl_cfg, validate_train_cfg
 
@@ -75,5 +76,27 @@ def train(cfg) -> LasmpRunner:
         print(f"resumed from {cfg.resume} at iteration {runner.current_learning_iteration}", flush=True)
     print(f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs, {cfg.runner.max_iterations} "
           f"iterations, logs in {log_dir}", flush=True)  # fmt: skip
-    runner.learn(cfg.runner.max_iterations)
+    try:
+        runner.learn(cfg.runner.max_iterations)
+    except TrainingInterrupted as stop:
+        if stop.checkpoint:
+            print(f"{stop}\nresume with:\n  {resume_command(stop.checkpoint, log_dir)}", flush=True)
+        raise
     return runner
+
+
+def resume_command(checkpoint: str, log_dir: str) -> str:
+    """The train.py command line that continues a run: this run's own overrides (from Hydra, when
+    it composed the config) with resume= and runner.log_dir= set."""
+    overrides: list[str] = []
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        if HydraConfig.initialized():
+            overrides = list(HydraConfig.get().overrides.task)
+    except ImportError:  # pragma: no cover - hydra is a dependency
+        pass
+    # a `+key=` that composed names a key of the schema (validation refuses others), and Hydra now
+    # refuses `+` on an existing key: repeat it without the `+`
+    keep = [o.removeprefix("+") for o in overrides if not o.lstrip("+~").startswith(("resume=", "runner.log_dir="))]
+    return " ".join(["python train.py", *keep, f"resume={checkpoint}", f"runner.log_dir={log_dir}"])

@@ -1,8 +1,10 @@
 """Training configuration: schemas for the policy, the algorithm and the runner, registered in
 Hydra's ConfigStore as the base of `cfg/config.yaml`, and their translation to rsl_rl's dict.
 
-Hydra type-checks every override against these dataclasses and refuses unknown keys, naming
-them; `validate_train_cfg` then checks value ranges, naming the field.
+Each task's env schema is registered too, as an option of the config group `env` named after the
+task (`env: moving_platform` in `cfg/config.yaml`, overridden by `cfg/task/rough_static.yaml`), so
+`env.*` overrides are typed like the rest. Hydra type-checks every override against these dataclasses
+and refuses unknown keys, naming them; `validate_train_cfg` then checks value ranges, naming the field.
 """
 
 from __future__ import annotations
@@ -13,23 +15,26 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf
 
-from lasmp.config import ConfigError, MovingPlatformCfg
+from lasmp.config import BaseEnvCfg, ConfigError, check_known_keys
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
+from lasmp.envs.rough_static.cfg import RoughStaticCfg
 
 ACTOR_CLASS = "lasmp.modules.policy:LasmpActor"
 CRITIC_CLASS = "rsl_rl.models:MLPModel"
 ALGORITHM_CLASS = "lasmp.algo.ppo_roa:PPOROA"
-TASKS = ("moving_platform", "rough_static")
+# task -> its env config dataclass, also the name of its option in the Hydra config group `env`
+ENV_SCHEMAS: dict[str, type[BaseEnvCfg]] = {
+    "moving_platform": MovingPlatformCfg,
+    "rough_static": RoughStaticCfg,
+}
+TASKS = tuple(ENV_SCHEMAS)
 
 
-def env_schema(task: str) -> type:
+def env_schema(task: str) -> type[BaseEnvCfg]:
     """The env config dataclass of a task."""
-    if task == "moving_platform":
-        return MovingPlatformCfg
-    if task == "rough_static":
-        from lasmp.config import RoughStaticCfg
-
-        return RoughStaticCfg
-    raise ConfigError(f"task must be one of {list(TASKS)}, got {task!r}")
+    if task not in ENV_SCHEMAS:
+        raise ConfigError(f"task must be one of {list(TASKS)}, got {task!r}")
+    return ENV_SCHEMAS[task]
 
 
 @dataclass
@@ -83,8 +88,9 @@ class TrainCfg:
     device: str = "cpu"  # where the learner runs; physics always runs on the CPU
     torch_threads: int = 0  # CPU threads of torch for the learner; 0 = torch's default (all cores)
     resume: str | None = None  # a checkpoint file or a run directory (its latest model_<N>.pt)
-    # the task's env config (lasmp/config.py: MovingPlatformCfg or RoughStaticCfg); checked against
-    # the task's schema when the run starts (unknown keys and bad values fail naming the field)
+    # the task's env config, ENV_SCHEMAS[task]. Hydra composes it from the `env` group (typed: unknown keys
+    # fail naming them); a plain dict (a checkpoint's saved config) is built with the task's schema by
+    # lasmp.train.to_train_cfg. Any, not BaseEnvCfg: a task's keys must merge into it before its type is known
     env: Any = field(default_factory=dict)
     policy: PolicyCfg = field(default_factory=PolicyCfg)
     algo: AlgoCfg = field(default_factory=AlgoCfg)
@@ -92,12 +98,23 @@ class TrainCfg:
 
 
 def register_configs() -> None:
-    ConfigStore.instance().store(name="train_schema", node=TrainCfg)
+    """`train_schema` (the base of cfg/config.yaml) and one option of the group `env` per task."""
+    store = ConfigStore.instance()
+    store.store(name="train_schema", node=TrainCfg)
+    for task, schema in ENV_SCHEMAS.items():
+        store.store(group="env", name=task, node=schema)
 
 
 def validate_train_cfg(cfg: TrainCfg) -> None:
     if not is_dataclass(cfg.env):
         raise ConfigError("env must be built with its task's schema (lasmp.train.to_train_cfg does it)")
+    check_known_keys(cfg)  # a `+key=value` typo (Hydra appends it) or a misspelt attribute set in code
+    schema = env_schema(cfg.task)
+    if type(cfg.env) is not schema:
+        raise ConfigError(
+            f"env is a {type(cfg.env).__name__} but task={cfg.task} needs a {schema.__name__}: the task picks "
+            f"its env (task=rough_static selects env=rough_static); drop the env=<option> override"
+        )
     cfg.env.validate("env")
     p, a, r = cfg.policy, cfg.algo, cfg.runner
     if p.explicit not in ("all", "no_platform", "none"):

@@ -90,8 +90,10 @@ def test_joint_and_actuator_order_and_limits(model):
         np.testing.assert_allclose(model.actuator_ctrlrange[i], a1.JOINT_RANGE_RAD[i])
         assert model.actuator_ctrllimited[i] and model.actuator_forcelimited[i]
         np.testing.assert_allclose(model.actuator_forcerange[i], [-a1.TORQUE_LIMIT_NM, a1.TORQUE_LIMIT_NM])
-        assert model.actuator_gainprm[i, 0] == a1.KP_NOMINAL
-        np.testing.assert_allclose(model.actuator_biasprm[i, :3], [0, -a1.KP_NOMINAL, -a1.KD_NOMINAL])
+        assert model.actuator_gainprm[i, 0] == a1.KP_NOMINAL_NM_PER_RAD
+        np.testing.assert_allclose(
+            model.actuator_biasprm[i, :3], [0, -a1.KP_NOMINAL_NM_PER_RAD, -a1.KD_NOMINAL_NM_S_PER_RAD]
+        )
     lo, hi = a1.JOINT_RANGE_RAD.T
     assert np.all((a1.Q_NOMINAL_RAD > lo) & (a1.Q_NOMINAL_RAD < hi))
 

@@ -7,6 +7,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+from omegaconf import OmegaConf
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -40,3 +43,30 @@ def test_train_iteration_bench_prints_the_time_breakdown(tmp_path):
     assert result["physics_s"] > 0 and result["update_ppo_s"] > 0 and result["update_roa_s"] > 0
     assert sum(result[k] for k in parts) <= result["s_per_iteration"] * 1.05
     assert result["policy_steps_per_s"] > 0
+
+
+@pytest.mark.parametrize(
+    "task, env_key, override",
+    [
+        ("moving_platform", "trajectory", "env.rewards.h_des_from=top"),
+        ("rough_static", "terrain", "env.pushes.max_mps=0.5"),
+    ],
+)
+def test_train_cfg_job_prints_the_tasks_typed_env(tmp_path, task, env_key, override):
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "train.py"), "--cfg", "job", f"task={task}", "env.sim.num_threads=1", override],
+        capture_output=True, text=True, check=True, cwd=tmp_path, timeout=300,
+    )  # fmt: skip
+    cfg = OmegaConf.create(out.stdout)  # the composed config, as YAML, and nothing else
+    assert cfg.task == task and env_key in cfg.env and cfg.env.sim.num_threads == 1
+    key, value = override.split("=")
+    assert str(OmegaConf.select(cfg, key)) == value
+
+
+@pytest.mark.parametrize("override", ["env.trajectory.fiel=x", "+env.trajectory.fiel=x"])
+def test_train_cli_refuses_a_typo_naming_the_key(tmp_path, override):
+    out = subprocess.run([sys.executable, str(ROOT / "train.py"), override, "runner.max_iterations=0",
+                          f"runner.log_dir={tmp_path / 'run'}"], capture_output=True, text=True, cwd=tmp_path,
+                         timeout=300)  # fmt: skip
+    assert out.returncode != 0 and "env.trajectory.fiel" in out.stderr, out.stderr[-2000:]
+    assert not (tmp_path / "run").exists()  # refused before anything was written

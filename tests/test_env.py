@@ -12,6 +12,7 @@ import torch
 
 from lasmp.config import ConfigError, build_env_cfg
 from lasmp.envs import trajectories as trj
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.domain_rand import nominal_intrinsics
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.robots import a1
@@ -232,6 +233,19 @@ def test_same_seed_gives_identical_observations_over_100_steps():
     assert not torch.equal(a, c)
 
 
+def test_random_actions_for_100_steps_cause_no_fault_and_finite_observations():
+    env = make(16, seed=5)
+    gen = torch.Generator().manual_seed(1)
+    for _ in range(100):
+        obs, reward, done, extras = env.step(torch.rand(16, 12, generator=gen) * 2.0 - 1.0)
+        for key, value in obs.items():
+            assert torch.isfinite(value).all(), key
+        assert torch.isfinite(reward).all()
+        assert extras["log"]["/faults/count"] == 0.0
+        assert extras["log"]["/faults/nonfinite_obs_values"] == 0.0
+    assert env.fault_count == 0 and env.nonfinite_obs_values == 0
+
+
 def test_batched_step_equals_a_serial_mj_step_loop():
     env = make(4)
     for _ in range(10):
@@ -313,12 +327,12 @@ def test_actions_of_wrong_shape_or_nan_are_refused():
 )
 def test_invalid_config_fails_at_start_up_naming_the_field(overrides, field):
     with pytest.raises(ConfigError, match=field.replace(".", r"\.")):
-        build_env_cfg(overrides)
+        build_env_cfg(overrides, schema=MovingPlatformCfg)
 
 
 def test_unknown_reward_error_lists_the_valid_terms():
     with pytest.raises(ConfigError, match="task1_center"):
-        build_env_cfg({"rewards": {"weights": {"task1_centre": 1.0}}})
+        build_env_cfg({"rewards": {"weights": {"task1_centre": 1.0}}}, schema=MovingPlatformCfg)
 
 
 def test_missing_trajectory_file_fails_with_its_name(tmp_path):

@@ -244,3 +244,32 @@ def test_relative_pose_frames():
     np.testing.assert_allclose(p, [[0.0, 0.2, 0.5]])
     with pytest.raises(ValueError, match="unknown position frame 'world'"):
         relative_pose(r, "world")
+
+
+def test_shrinking_the_tail_steps_only_playing_envs_and_changes_no_episode():
+    import torch
+
+    from lasmp.envs.moving_platform.env import MovingPlatformEnv
+    from lasmp.eval.cli import eval_env_overrides
+    from lasmp.eval.run import run_benchmark
+
+    bench = bm.generate(num_trajectories=10, num_robots=4, seed=0)
+    results, stepped = {}, {}
+    for shrink in (False, True):
+        env = MovingPlatformEnv({**eval_env_overrides(4, 0), "trajectory": {"split": "test", "duration_s": 2.0}})
+        counts = []
+        real_step = env.sim.step
+
+        def counting_step(nstep, ids=None, real_step=real_step, counts=counts, n=env.num_envs):
+            counts.append(n if ids is None else len(ids))
+            return real_step(nstep, ids)
+
+        env.sim.step = counting_step
+        zeros = torch.zeros(4, 12)
+        results[shrink] = run_benchmark(env, lambda obs, zeros=zeros: zeros, bench, 10, progress=False, shrink_tail=shrink)
+        stepped[shrink] = sum(counts)
+        assert env.stepped_envs is None  # the hook is cleared after the run
+    for key, value in results[False]["episodes"].items():
+        np.testing.assert_array_equal(results[True]["episodes"][key], value, err_msg=key)
+    # 10 episodes on 4 envs: the third wave has 2 episodes, so the tail steps fewer envs
+    assert stepped[True] < stepped[False]

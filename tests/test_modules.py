@@ -9,7 +9,7 @@ from rsl_rl.utils import resolve_callable
 from tensordict import TensorDict
 
 from lasmp.modules import HistoryEstimator, ImplicitEncoder, LasmpActor
-from lasmp.modules.actor import X_EXP_NAMES
+from lasmp.modules.obs_groups import X_EXP_NAMES, omega_plf_z, v_body_xy, v_plf_xy
 
 N, H, D = 6, 20, 44
 GROUPS = {"actor": ["policy", "history", "priv_explicit", "priv_implicit", "alignment"], "critic": ["critic"]}
@@ -154,6 +154,17 @@ def test_alignment_hat_formula(monkeypatch):
     torch.testing.assert_close(latent[:, :D], o)
     torch.testing.assert_close(latent[:, D : D + 13], x_hat)
     torch.testing.assert_close(latent[:, D + 13 : D + 16], expected)
+
+
+def test_named_x_exp_columns_are_the_named_dims():
+    x_exp = torch.arange(len(X_EXP_NAMES)).unsqueeze(0)  # column i holds i
+
+    def names(columns: torch.Tensor) -> list[str]:
+        return [X_EXP_NAMES[i] for i in columns[0].tolist()]
+
+    assert names(v_body_xy(x_exp)) == ["v_body_x", "v_body_y"]
+    assert names(v_plf_xy(x_exp)) == ["v_plf_x", "v_plf_y"]
+    assert names(omega_plf_z(x_exp)) == ["omega_plf_z"]
 
 
 def test_history_normalized_with_obs_statistics():

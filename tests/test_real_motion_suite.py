@@ -58,13 +58,15 @@ def test_episodes_pair_every_scenario_with_the_same_robots(small_bench):
 
 def test_suite_overrides_reach_the_env_config():
     from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 
-    cfg = build_env_cfg(eval_env_overrides(2, 0, rm.env_overrides(20.0, "close")))
+    def build(drive: str) -> MovingPlatformCfg:
+        return build_env_cfg(eval_env_overrides(2, 0, rm.env_overrides(20.0, drive)), schema=MovingPlatformCfg)
+
+    cfg = build("close")
     assert cfg.trajectory.duration_s == 20.0 and cfg.trajectory.split == "test"  # merged, not replaced
     assert cfg.platform.velocity_feedforward and cfg.platform.omega_n_rad_s == pytest.approx(25.13)
-    assert (
-        build_env_cfg(eval_env_overrides(2, 0, rm.env_overrides(20.0, "paper"))).platform.omega_n_rad_s == 1.0
-    )
+    assert build("paper").platform.omega_n_rad_s == 1.0
     with pytest.raises(ValueError, match="unknown platform drive 'stiff'"):
         rm.env_overrides(20.0, "stiff")
 

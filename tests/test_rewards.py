@@ -88,7 +88,14 @@ def test_every_term_shape_and_sign_on_random_state(name):
         setattr(s, f, torch.rand(N, 4, generator=g) > 0.5)
     s.collision = torch.tensor([True, False, True])
     out = term(name, s)
+    assert out.shape == (N,) and out.dtype == s.p_body_p.dtype
     assert torch.isfinite(out).all()
+    if name == "task0_collision":
+        assert out.tolist() == [1.0, 0.0, 1.0]
+    elif name.startswith("task"):  # exp(-distance / sigma) kernels: in (0, 1], < 1 off target
+        assert ((out > 0) & (out < 1)).all(), out
+    else:  # penalties are magnitudes: >= 0, and > 0 somewhere on a random state
+        assert (out >= 0).all() and (out > 0).any(), out
     w = DEFAULT_REWARD_WEIGHTS[name]
     # task1..4 are bonuses, everything else a penalty
     assert (w > 0) == (name.startswith("task") and name != "task0_collision")
@@ -284,7 +291,8 @@ def test_registry_module_attributes_match():
 
 def test_h_des_reading_resolves_to_the_platform_frame():
     """h_des = 0.37 m is measured from the platform frame's origin by default; "top" adds the 0.1 m."""
-    from lasmp.config import ConfigError, RewardsCfg
+    from lasmp.config import ConfigError
+    from lasmp.envs.moving_platform.cfg import RewardsCfg
 
     assert RewardsCfg().h_des_p_m(0.1) == pytest.approx(0.37)
     assert RewardsCfg(h_des_from="top").h_des_p_m(0.1) == pytest.approx(0.47)

@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 import torch
 
-from lasmp.config import ConfigError, RoughStaticCfg, build_env_cfg
+from lasmp.config import ConfigError, build_env_cfg
 from lasmp.envs.moving_platform.rewards import RewardManager
+from lasmp.envs.robot import read_robot
 from lasmp.envs.rough_static import rewards as rw
+from lasmp.envs.rough_static.cfg import RoughStaticCfg
 from lasmp.envs.rough_static.env import RoughStaticEnv
 from lasmp.envs.rough_static.terrain import HFIELD_NAME
 from lasmp.robots import a1
@@ -48,7 +50,7 @@ def test_robot_spawns_above_the_terrain_touching_nothing():
     m = env.sim.model
     terrain = m.geom(HFIELD_NAME).id
     data = mujoco.MjData(m)
-    x = env.sim.qpos[:, env.root_qpos : env.root_qpos + 2]
+    x = env.sim.qpos[:, env.index.root_qpos : env.index.root_qpos + 2]
     half = np.array([env.terrain.half_x_m, env.terrain.half_y_m]) - env.cfg.terrain.spawn_margin_m
     assert np.all(np.abs(x) <= half)
     for i in range(env.num_envs):
@@ -61,7 +63,7 @@ def test_robot_spawns_above_the_terrain_touching_nothing():
         ground = env.terrain.height_at(feet[:, :2])
         gap = feet[:, 2] - a1.FOOT_RADIUS_M - ground
         assert np.all(gap >= -1e-6) and gap.min() < 0.15  # above the ground, and not dropped from high
-    assert not env.read().body_collision.any()
+    assert not read_robot(env.sim, env.index).body_collision.any()
 
 
 def test_standing_still_on_rough_ground_mostly_survives_2_s():
@@ -77,9 +79,9 @@ def test_standing_still_on_rough_ground_mostly_survives_2_s():
 def test_push_adds_the_requested_horizontal_velocity():
     env = make(4, seed=1)
     ids = np.array([0, 2])
-    before = env.sim.qvel[:, env.root_qvel : env.root_qvel + 6].copy()
+    before = env.sim.qvel[:, env.index.root_qvel : env.index.root_qvel + 6].copy()
     dv = env.push(ids)
-    after = env.sim.qvel[:, env.root_qvel : env.root_qvel + 6]
+    after = env.sim.qvel[:, env.index.root_qvel : env.index.root_qvel + 6]
     assert np.allclose(after[ids, :2] - before[ids, :2], dv)
     assert np.all(np.linalg.norm(dv, axis=1) <= env.cfg.pushes.max_mps)
     assert np.allclose(after[ids, 2:], before[ids, 2:]) and np.allclose(after[[1, 3]], before[[1, 3]])
@@ -177,8 +179,8 @@ def test_body_contact_terminates_and_time_out_is_a_truncation():
     env = make(2, seed=3, pushes={"enabled": False}, domain_rand={"enabled": False})
     q = env.sim.qpos
     ground = env.terrain.max_height_near(q[:1, :2], 0.3)[0]
-    q[0, env.root_qpos + 2] = ground + 0.045  # upside down, trunk on (slightly in) the ground
-    q[0, env.root_qpos + 3 : env.root_qpos + 7] = [0.0, 1.0, 0.0, 0.0]
+    q[0, env.index.root_qpos + 2] = ground + 0.045  # upside down, trunk on (slightly in) the ground
+    q[0, env.index.root_qpos + 3 : env.index.root_qpos + 7] = [0.0, 1.0, 0.0, 0.0]
     env.sim.batch.forward(np.array([0]))
     _, _, done, extras = env.step(zeros(env))
     assert done.tolist() == [True, False] and not extras["time_outs"].any()

@@ -13,7 +13,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from lasmp.algo.runner import CheckpointError, latest_checkpoint, read_checkpoint
+from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint, read_checkpoint
 from lasmp.config import ConfigError
 from lasmp.train import make_runner, to_train_cfg, train
 from lasmp.train_cfg import register_configs

@@ -1,82 +1,63 @@
-"""Training runner: rsl_rl's `OnPolicyRunner` with complete, atomic, checked checkpoints.
+"""Training runner: rsl_rl's `OnPolicyRunner` with complete, atomic, checked checkpoints (see
+`lasmp.algo.checkpoint`), a divergence guard and safe interruption.
 
-A checkpoint holds all networks (with their normalizers), both optimizers, the iteration to
-run next, the resolved config, the observation layout and action size, and the env's
-curriculum state. It is written to a temporary file in the same directory and renamed over
-the target, so an interrupted save never leaves a truncated checkpoint behind. Loading checks
-the file and the observation layout and says what is wrong.
+- Divergence: after every update, a non-finite loss or parameter raises `FloatingPointError`
+  naming it, and `save` refuses to write a non-finite checkpoint, so the last good one stays.
+- Interruption: SIGINT (Ctrl-C) or SIGTERM during `learn` lets the current iteration finish, writes
+  `model_<it>.pt` and raises `TrainingInterrupted` (the caller prints the resume command). A second
+  signal aborts at once.
 """
 
 from __future__ import annotations
 
 import datetime
-import re
+import math
+import signal
 import statistics
+import threading
 from pathlib import Path
 
-import torch
 from rsl_rl.runners import OnPolicyRunner
 from rsl_rl.utils.logger import Logger
 
-from lasmp.atomic import atomic_open
+from lasmp.algo.checkpoint import (
+    CHECKPOINT_FORMAT,
+    atomic_torch_save,
+    check_compatible,
+    check_finite,
+    obs_layout,
+    read_checkpoint,
+    rng_state,
+    set_rng_state,
+)
 
-CHECKPOINT_FORMAT = "lasmp-checkpoint-v1"
-
-
-class CheckpointError(ValueError):
-    """A checkpoint is missing, unreadable or does not fit this run; the message says why."""
-
-
-def obs_layout(obs) -> dict[str, list[int]]:
-    """Per-group shapes of one env's observation (batch dimension dropped)."""
-    return {key: list(value.shape[1:]) for key, value in obs.items()}
-
-
-def latest_checkpoint(run_dir: str | Path) -> Path:
-    """The `model_<N>.pt` of `run_dir` with the largest N (numerically: model_10 after model_9)."""
-    run_dir = Path(run_dir)
-    found = []
-    for path in run_dir.glob("model_*.pt"):
-        m = re.fullmatch(r"model_(\d+)\.pt", path.name)
-        if m:
-            found.append((int(m.group(1)), path))
-    if not found:
-        raise CheckpointError(f"no checkpoint model_<N>.pt in {run_dir}")
-    return max(found)[1]
+INTERRUPT_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-def read_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
-    """Load and sanity-check a checkpoint file (a run directory means its latest checkpoint)."""
-    path = Path(path)
-    if path.is_dir():
-        path = latest_checkpoint(path)
-    if not path.exists():
-        raise CheckpointError(f"checkpoint {path} does not exist")
-    try:
-        data = torch.load(path, map_location=map_location, weights_only=False)
-    except Exception as err:  # truncated zip, not a torch file, ...
-        raise CheckpointError(
-            f"checkpoint {path} is unreadable (truncated or not a checkpoint): {err}"
-        ) from err
-    if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
-        raise CheckpointError(f"{path} is not a lasmp checkpoint (no format '{CHECKPOINT_FORMAT}')")
-    for key in ("actor_state_dict", "critic_state_dict", "config", "obs_layout", "num_actions", "iter"):
-        if key not in data:
-            raise CheckpointError(f"checkpoint {path} lacks '{key}'")
-    data["path"] = str(path)
-    return data
+class TrainingInterrupted(Exception):
+    """Training stopped on a signal after iteration `iteration`, saved to `checkpoint`."""
 
-
-def atomic_torch_save(obj, path: str | Path) -> None:
-    with atomic_open(path) as f:
-        torch.save(obj, f)
+    def __init__(self, signum: int, iteration: int, checkpoint: str | None):
+        self.signum, self.iteration, self.checkpoint = signum, iteration, checkpoint
+        name = signal.Signals(signum).name
+        super().__init__(f"{name} received: stopped after iteration {iteration}"
+                         + (f", saved {checkpoint}" if checkpoint else " (no log_dir: nothing saved)"))  # fmt: skip
 
 
 class OneLineLogger(Logger):
     """TensorBoard scalars as rsl_rl's logger writes them, but one terminal line per iteration."""
 
+    iteration_done = None  # callback(it) after each iteration's log (the runner's interruption check)
+
     def log(self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std, rnd_weight,
-            **_) -> None:  # fmt: skip
+            **kwargs) -> None:  # fmt: skip
+        try:
+            self._log(it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std)
+        finally:
+            if self.iteration_done is not None:
+                self.iteration_done(it)
+
+    def _log(self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std) -> None:
         if self.writer is None:
             return
         steps = self.cfg["num_steps_per_env"] * self.num_envs
@@ -117,7 +98,8 @@ class OneLineLogger(Logger):
 
 
 class LasmpRunner(OnPolicyRunner):
-    """`OnPolicyRunner` + checkpoints with config, layout and env state; exact resume."""
+    """`OnPolicyRunner` + checkpoints with config, layout, env and random state; divergence guard;
+    checkpoint on SIGINT / SIGTERM."""
 
     def __init__(
         self, env, train_cfg: dict, log_dir: str | None, device: str = "cpu", full_config: dict | None = None
@@ -128,9 +110,59 @@ class LasmpRunner(OnPolicyRunner):
             log_dir=log_dir, cfg=self.cfg, env_cfg=env.cfg, num_envs=env.num_envs, is_distributed=False,
             gpu_world_size=1, gpu_global_rank=0, device=device,
         )  # fmt: skip
+        self.logger.iteration_done = self._after_iteration
+        self._signal: int | None = None
+        self._update = self.alg.update
+        self.alg.update = self._checked_update  # rsl_rl's loop calls alg.update() once per iteration
 
+    # -- divergence guard ------------------------------------------------------------------------
+    def _checked_update(self) -> dict[str, float]:
+        losses = self._update()
+        bad = {k: v for k, v in losses.items() if not math.isfinite(float(v))}
+        if bad:
+            raise FloatingPointError(
+                f"non-finite loss after the update of iteration {self.current_learning_iteration + 1}: {bad}. "
+                "Training diverged; lower algo.learning_rate or check the rewards. The last saved checkpoint "
+                "is intact (none is written from a diverged state)."
+            )
+        check_finite(self.alg.save(), "parameters after the update (training diverged)")
+        return losses
+
+    # -- interruption ------------------------------------------------------------------------------
+    def _on_signal(self, signum, _frame) -> None:
+        if self._signal is not None:  # a second signal: stop now, without a checkpoint
+            raise KeyboardInterrupt
+        self._signal = signum
+        print(f"\n{signal.Signals(signum).name}: finishing this iteration, then saving a checkpoint "
+              "(send it again to abort at once)", flush=True)  # fmt: skip
+
+    def _after_iteration(self, it: int) -> None:
+        if self._signal is None:
+            return
+        path = None
+        if self.logger.log_dir is not None:
+            path = str(Path(self.logger.log_dir) / f"model_{it}.pt")
+            self.save(path)
+            self.logger.stop_logging_writer()
+        raise TrainingInterrupted(self._signal, it, path)
+
+    def learn(self, num_learning_iterations: int, init_at_random_ep_len: bool = False) -> None:
+        """rsl_rl's loop; SIGINT / SIGTERM (main thread only) end it after the current iteration with a
+        checkpoint and `TrainingInterrupted`."""
+        previous = {}
+        if threading.current_thread() is threading.main_thread():
+            previous = {s: signal.signal(s, self._on_signal) for s in INTERRUPT_SIGNALS}
+        self._signal = None
+        try:
+            super().learn(num_learning_iterations, init_at_random_ep_len)
+        finally:
+            for s, handler in previous.items():
+                signal.signal(s, handler)
+
+    # -- checkpoints -------------------------------------------------------------------------------
     def save(self, path: str, infos: dict | None = None) -> None:
         data = self.alg.save()
+        check_finite(data, f"refusing to save {path}")
         data.update(
             format=CHECKPOINT_FORMAT,
             iter=self.current_learning_iteration,
@@ -139,6 +171,7 @@ class LasmpRunner(OnPolicyRunner):
             obs_layout=obs_layout(self.env.get_observations()),
             num_actions=self.env.num_actions,
             env_state=self.env.state_dict(),
+            rng_state=rng_state(self.env.rng),
         )
         atomic_torch_save(data, path)
 
@@ -152,18 +185,6 @@ class LasmpRunner(OnPolicyRunner):
             self.current_learning_iteration = int(data["iter"]) + 1  # the saved iteration is complete
         if data.get("env_state"):
             self.env.load_state_dict(data["env_state"])
+        if data.get("rng_state"):  # older checkpoints lack it: the streams then restart from the seed
+            set_rng_state(data["rng_state"], self.env.rng)
         return data.get("infos")
-
-
-def check_compatible(data: dict, env) -> None:
-    """Refuse a checkpoint whose observation layout or action size differs from the env's."""
-    have = obs_layout(env.get_observations())
-    want = data["obs_layout"]
-    for group in sorted(set(have) | set(want)):
-        if have.get(group) != want.get(group):
-            raise CheckpointError(
-                f"checkpoint {data.get('path', '')} was trained with observation group '{group}' of shape "
-                f"{want.get(group)}, but this env gives {have.get(group)}"
-            )
-    if int(data["num_actions"]) != env.num_actions:
-        raise CheckpointError(f"checkpoint has {data['num_actions']} actions, the env {env.num_actions}")

@@ -3,10 +3,11 @@
 `step(actions)` = check actions -> `_apply_actions` -> physics (`CpuBatchSim.step`, decimation
 substeps) -> `_evaluate` (rewards, terminations, time-outs, from the new state) -> reset the
 finished envs -> `_observations` (for reset envs: their first observation). Faulted envs
-(MuJoCo errors, warnings, non-finite state) are terminated, get reward 0, are reset alone, and
-are counted in `extras["log"]["/faults/count"]`. A last guard replaces any non-finite
-observation value by 0 (the task's `_observations` does
-it) and counts it, so that no NaN ever reaches a policy.
+(flagged by the physics: MuJoCo errors, warnings, non-finite state; or by the task's
+`_evaluate`: e.g. runaway joints, see `lasmp.envs.robot.screen_faults`) are terminated, get
+reward 0, are reset alone, and are counted in `extras["log"]["/faults/count"]`. A last guard
+replaces any non-finite observation value by 0 (the task's `_observations` does it) and counts
+it, so that no NaN ever reaches a policy.
 
 `extras["time_outs"]` flags episodes that ended at the time limit (a truncation, to be
 bootstrapped), `extras["log"]` holds per-episode reward terms and task metrics.
@@ -23,8 +24,7 @@ from tensordict import TensorDict
 
 from lasmp.config import BaseEnvCfg
 from lasmp.envs.backends.cpu import CpuBatchSim
-
-OBS_DIM = 44  # o: accelerometer (3), gyro (3), roll & pitch (2), q - q_nominal (12), q_dot (12), a_{t-1} (12)
+from lasmp.envs.robot import OBS_DIM
 
 
 def to_tensor(x: np.ndarray, device) -> torch.Tensor:
@@ -53,6 +53,9 @@ class BaseEnv(VecEnv):
             self.num_envs, cfg.observations.history_length, OBS_DIM, device=self.device
         )
         self._fresh: np.ndarray | None = None
+        # evaluation hook: when set, only these envs' physics advance (the idle envs at the tail of an
+        # evaluation); the others keep their state, and their outputs are to be ignored
+        self.stepped_envs: np.ndarray | None = None
 
     # -- the task fills these ----------------------------------------------------------------
     @abstractmethod
@@ -60,8 +63,9 @@ class BaseEnv(VecEnv):
         """Write controls for the coming policy step (actions: (n, num_actions) float64, clipped)."""
 
     @abstractmethod
-    def _evaluate(self, faulted: np.ndarray) -> tuple[torch.Tensor, np.ndarray, dict]:
-        """After physics: (reward (n,), terminated (n,) bool, log dict). Faulted envs are terminated."""
+    def _evaluate(self) -> tuple[torch.Tensor, np.ndarray, np.ndarray, dict]:
+        """After physics: (reward (n,), terminated (n,) bool, faulted (n,) bool, log dict): the envs
+        the task finds diverged, on top of those the physics flagged; all faulted envs are terminated."""
 
     @abstractmethod
     def _reset_envs(self, ids: np.ndarray, terminated: np.ndarray, timed_out: np.ndarray) -> dict:
@@ -97,9 +101,10 @@ class BaseEnv(VecEnv):
             raise ValueError(f"actions contain NaN/inf in envs {bad[:10].tolist()}: the policy diverged")
         clip = self.cfg.control.action_clip
         self._apply_actions(np.clip(a, -clip, clip))
-        faulted = self.sim.step(self.cfg.sim.decimation)
+        sim_faulted = self.sim.step(self.cfg.sim.decimation, self.stepped_envs)
         self.episode_length_buf += 1
-        reward, terminated, log = self._evaluate(faulted)
+        reward, terminated, task_faulted, log = self._evaluate()
+        faulted = sim_faulted | task_faulted
         reward[torch.from_numpy(faulted)] = 0.0
         terminated = terminated | faulted
         timed_out = (self.episode_length_buf.numpy() >= self.max_episode_length) & ~terminated

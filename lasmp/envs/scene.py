@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from lasmp.config import PlatformCfg, SimCfg
+from lasmp.config import SimCfg
+from lasmp.envs.moving_platform.cfg import PlatformCfg
 from lasmp.robots import a1
 
 PLATFORM_JOINTS = ("plf_x", "plf_y", "plf_z", "plf_yaw", "plf_pitch", "plf_roll")

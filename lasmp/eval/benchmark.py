@@ -214,7 +214,7 @@ def _report(info: dict, as_json: bool) -> None:
         f"{info['path']}: {info['bytes']} bytes, sha256 {info['sha256']}\n"
         f"seed {info['seed']}, {info['num_trajectories']} trajectories, {info['num_robots']} robots"
     )
-    T._print_table(info["statistics"])
+    T.print_table(info["statistics"])
 
 
 def main(argv=None) -> int:

@@ -23,8 +23,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from lasmp.algo.runner import CheckpointError
-from lasmp.config import build_env_cfg
+from lasmp.algo.checkpoint import CheckpointError
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
 from lasmp.eval.metrics import summarize
@@ -74,7 +73,7 @@ def build(args, extra_env: dict | None = None):
     n = min(args.batch_envs, args.num_trajectories)
     overrides = eval_env_overrides(n, args.seed, extra_env)
     if args.controller == "stand_still":
-        env = MovingPlatformEnv(build_env_cfg(overrides))
+        env = MovingPlatformEnv(overrides)
         zeros = torch.zeros(n, env.num_actions)
         return env, (lambda obs: zeros), None, "stand_still"
     _, policy, cfg = load_deploy_policy(args.checkpoint, num_envs=1, seed=args.seed)
@@ -82,7 +81,7 @@ def build(args, extra_env: dict | None = None):
         if cfg.task != "rough_static" or not policy.command_input:
             raise CheckpointError(f"--controller {args.controller} needs an R-S checkpoint (task=rough_static), "
                                   f"got task={cfg.task}")  # fmt: skip
-        env = MovingPlatformEnv(build_env_cfg(overrides))
+        env = MovingPlatformEnv(overrides)
         command = oracle_command if args.controller == "rs_oracle" else zero_command
 
         def rs_controller(obs):
@@ -95,8 +94,7 @@ def build(args, extra_env: dict | None = None):
         raise CheckpointError(
             f"--checkpoint without --controller needs a moving_platform policy, got {cfg.task}"
         )
-    env_cfg = build_env_cfg(deep_merge(_asdict(cfg.env), overrides))
-    env = MovingPlatformEnv(env_cfg)
+    env = MovingPlatformEnv(deep_merge(_asdict(cfg.env), overrides))
     return env, (lambda obs: policy(obs)), policy, f"LAS-MP checkpoint {args.checkpoint} ({cfg.policy.name})"
 
 

@@ -61,10 +61,14 @@ def relative_pose(readout, frame: str = POSITION_FRAME) -> tuple[np.ndarray, np.
 
 
 def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=None, trace: bool = False,
-                  progress: bool = True) -> dict:  # fmt: skip
+                  progress: bool = True, shrink_tail: bool = True) -> dict:  # fmt: skip
     """Play `num_episodes` benchmark episodes; per-episode metrics (arrays in benchmark order),
     estimator errors (if `policy` is given) and, with `trace`, the estimated and true x_exp over the
-    longest episode of the first wave (episodes 0..num_envs-1, one per env)."""
+    longest episode of the first wave (episodes 0..num_envs-1, one per env).
+
+    `shrink_tail`: once every episode has started, only the envs still playing one are simulated
+    (`env.stepped_envs`); the idle ones stop costing physics. Each episode's numbers are the same
+    either way (the simulations are independent)."""
     source = BenchmarkSource(bench, num_episodes, env.num_envs)
     env.episode_source = source
     metrics = EpisodeMetrics(env.num_envs, env.h_des_p_m)
@@ -88,6 +92,8 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
         while done_count < num_episodes:
             ep_before = source.episode_of_env.copy()
             active = ep_before >= 0
+            if shrink_tail and source.next_episode >= num_episodes:
+                env.stepped_envs = np.flatnonzero(active)
             if policy is not None:
                 x_true, x_hat = _accumulate_estimates(policy, obs, active, est)
                 if trace and ((ep_before >= 0) & (ep_before < env.num_envs)).any():
@@ -117,6 +123,7 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
         print(file=sys.stderr)
     env.on_step = None
     env.episode_source = None
+    env.stepped_envs = None
     out = {"episodes": episodes, "wall_time_s": time.perf_counter() - start}
     if est["count"]:
         names = policy.estimation_names

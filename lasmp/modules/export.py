@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import torch
 from torch import nn
 
-from lasmp.modules.actor import GYRO_Z_COL, alignment_from_estimates
+from lasmp.modules.obs_groups import GYRO_Z_COL, alignment_from_estimates
 
 if TYPE_CHECKING:
     from lasmp.modules.policy import LasmpActor

@@ -10,7 +10,10 @@ from rsl_rl.models import MLPModel
 from tensordict import TensorDict
 from torch import nn
 
-from lasmp.modules.actor import (
+from lasmp.modules.encoder import ImplicitEncoder
+from lasmp.modules.estimator import HistoryEstimator
+from lasmp.modules.export import LasmpDeployPolicy
+from lasmp.modules.obs_groups import (
     GROUP_ALIGNMENT,
     GROUP_COMMAND,
     GROUP_EXPLICIT,
@@ -23,9 +26,6 @@ from lasmp.modules.actor import (
     alignment_from_estimates,
     explicit_indices,
 )
-from lasmp.modules.encoder import ImplicitEncoder
-from lasmp.modules.estimator import HistoryEstimator
-from lasmp.modules.export import LasmpDeployPolicy
 
 
 class LasmpActor(MLPModel):

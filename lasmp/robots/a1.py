@@ -34,7 +34,6 @@ JOINT_NAMES: tuple[str, ...] = tuple(
 FOOT_NAMES: tuple[str, ...] = tuple(f"{leg}_foot" for leg in LEG_NAMES)  # geom, body and site names
 TRUNK_BODY_NAME = "trunk"
 ROOT_JOINT_NAME = "root"
-IMU_SITE_NAME = "imu"
 
 # Nominal stance q_nominal (rad), order JOINT_NAMES: hips splayed out (+0.1 left, -0.1 right),
 # thighs 0.8 front / 1.0 rear, calves -1.5 (SPEC §2).
@@ -55,10 +54,8 @@ JOINT_RANGE_RAD: np.ndarray = np.array([_HIP_RANGE, _THIGH_RANGE, _CALF_RANGE] *
 JOINT_RANGE_RAD.flags.writeable = False
 
 TORQUE_LIMIT_NM = 33.5  # per joint, N·m
-KP_NOMINAL = 40.0  # position-actuator stiffness, N·m/rad
-KD_NOMINAL = 1.0  # position-actuator damping (kv), N·m·s/rad
-ACTION_SCALE = 0.25  # q_target = q_nominal + ACTION_SCALE * a (rad per action unit)
-JOINT_SPEED_LIMIT_RAD_S = 21.0
+KP_NOMINAL_NM_PER_RAD = 40.0  # position-actuator stiffness
+KD_NOMINAL_NM_S_PER_RAD = 1.0  # position-actuator damping (kv)
 
 TRUNK_MASS_KG = 4.714  # as in a1.xml (nominal, before randomization)
 TRUNK_COM_M: np.ndarray = np.array([0.0127, 0.002, 0.0006])  # trunk CoM in the trunk frame, m

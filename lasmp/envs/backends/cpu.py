@@ -47,12 +47,13 @@ class CpuBatchSim:
         """Per-env values of a model field, (num_envs, ...), live."""
         return self.batch.expand(name)
 
-    def step(self, nstep: int) -> np.ndarray:
-        """Advance all envs `nstep` physics steps; return the (num_envs,) mask of faulted envs."""
+    def step(self, nstep: int, ids: np.ndarray | None = None) -> np.ndarray:
+        """Advance all envs (or only envs `ids`) `nstep` physics steps; return the (num_envs,) mask of
+        faulted envs. Envs left out keep their state exactly."""
         faulted = np.zeros(self.num_envs, dtype=bool)
         start = time.perf_counter()
         try:
-            self.batch.step(nstep=nstep, stage=_STAGE_VEL)
+            self.batch.step(ids=ids, nstep=nstep, stage=_STAGE_VEL)
         except mujoco.batch.SimulationError as err:
             faulted[err.ids] = True
         self.step_time_s += time.perf_counter() - start

@@ -18,20 +18,22 @@ import numpy as np
 import torch
 from tensordict import TensorDict
 
-from lasmp.config import MovingPlatformCfg, build_env_cfg
+from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as trj
 from lasmp.envs.backends.cpu import CpuBatchSim
 from lasmp.envs.base_env import BaseEnv, to_tensor
 from lasmp.envs.curriculum import WaypointCurriculum
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.domain_rand import (
     Intrinsics,
     IntrinsicsWriter,
     nominal_intrinsics,
     sample_intrinsics,
 )
-from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read, update_rows
+from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read
 from lasmp.envs.moving_platform.rewards import RewardManager, RewardParams
 from lasmp.envs.moving_platform.state import StepState
+from lasmp.envs.robot import proprioception, screen_faults, update_rows
 from lasmp.envs.rotations import yaw_quat
 from lasmp.envs.scene import PLATFORM_JOINTS, POSE_TO_JOINT, build_model, platform_gains, platform_top_z_m
 from lasmp.robots import a1
@@ -40,7 +42,7 @@ from lasmp.robots import a1
 class MovingPlatformEnv(BaseEnv):
     def __init__(self, cfg: MovingPlatformCfg | dict | None = None, device="cpu"):
         if not isinstance(cfg, MovingPlatformCfg):
-            cfg = build_env_cfg(cfg)
+            cfg = build_env_cfg(cfg, schema=MovingPlatformCfg)
         else:
             cfg.validate()
         model = build_model(cfg.platform, cfg.sim)
@@ -132,13 +134,8 @@ class MovingPlatformEnv(BaseEnv):
         below = r.p_body_p[:, 2] < self.plf_top_m + tc.fall_below_top_m
         return off | below
 
-    def _evaluate(self, faulted: np.ndarray):
-        r = read(self.sim, self.index)
-        faulted |= (np.abs(r.q_dot) > self.cfg.termination.max_joint_vel_rad_s).any(axis=1)
-        if faulted.any():  # keep NaNs of diverged envs out of rewards and logs
-            for name, value in vars(r).items():
-                if value.dtype.kind == "f":
-                    setattr(r, name, np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0))
+    def _evaluate(self):
+        r, faulted = screen_faults(read(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
         self.readout = r
         fell = self._fell(r)
         collision = r.body_collision | fell
@@ -191,7 +188,7 @@ class MovingPlatformEnv(BaseEnv):
         if self.curriculum is not None:  # every step, so each iteration logs the level
             log["Curriculum/level"] = float(self.curriculum.level)
             log["Curriculum/success_rate"] = self.curriculum.success_rate
-        return reward, collision, log
+        return reward, collision, faulted, log
 
     # -- resets --------------------------------------------------------------------------------
     def _next_trajectories(self, ids: np.ndarray) -> tuple[trj.PiecewisePoly, np.ndarray]:
@@ -229,8 +226,7 @@ class MovingPlatformEnv(BaseEnv):
             else:
                 params = nominal_intrinsics(n, self.cfg.platform.kd_factor_ref)
             new_traj, levels = self._next_trajectories(ids)
-        for name, value in vars(params).items():
-            getattr(self.intrinsics, name)[ids] = value
+        update_rows(self.intrinsics, ids, params)
         self.writer.write(ids, params)
         self.traj.replace_rows(ids, new_traj)
         self.traj_level[ids] = levels
@@ -272,9 +268,7 @@ class MovingPlatformEnv(BaseEnv):
         elif self._fresh is not None:
             update_rows(self.readout, self._fresh, read(self.sim, self.index, self._fresh))
         r = self.readout
-        o = np.concatenate(
-            [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - self.q_nominal, r.q_dot, self.action], axis=1
-        )
+        o = proprioception(r, self.action)
         x_exp = np.concatenate([r.foot_contact, r.v_body_b, r.v_plf_b, r.omega_plf_b], axis=1)
         x_imp = self.intrinsics.x_imp()
         critic = np.concatenate([o, x_exp, x_imp, r.u_aln, r.p_body_p, r.phi_body_w], axis=1)

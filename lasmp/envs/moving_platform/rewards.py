@@ -25,14 +25,13 @@ Our choices (SPEC §10 leaves them open):
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import torch
 
 from lasmp.envs.moving_platform.state import StepState
-from lasmp.envs.reward_registry import make_registry, squared_norm
+from lasmp.envs.reward_registry import check_reward_weights, make_registry, squared_norm
 
 
 @dataclass
@@ -192,16 +191,8 @@ class RewardManager:
         registry: Mapping[str, Callable] | None = None,
     ) -> None:
         registry = REWARD_TERMS if registry is None else registry  # another task's terms
-        unknown = sorted(set(weights) - set(registry))
-        if unknown:
-            raise ValueError(f"unknown reward term(s) {unknown}; valid names: {sorted(registry)}")
-        active: list[tuple[str, float]] = []
-        for name, w in weights.items():
-            w = float(w)
-            if not math.isfinite(w):
-                raise ValueError(f"reward weight for {name!r} must be finite, got {w}")
-            if w != 0.0:
-                active.append((name, w))
+        check_reward_weights(weights, registry, "weights")
+        active = [(name, float(w)) for name, w in weights.items() if float(w) != 0.0]
         self.params = params
         self.num_envs = num_envs
         self.device = torch.device(device)

@@ -2,8 +2,8 @@
 
 Trained with random pushes and the robot part of the moving-platform domain randomization,
 never on a moving platform; the benchmark runs it with a zero command. Same step loop
-(`BaseEnv`), conventions and observation names as `MovingPlatformEnv`, so the same actor
-consumes it.
+(`BaseEnv`), robot layer (`lasmp.envs.robot`: readout, intrinsics, o, fault screening),
+conventions and observation names as `MovingPlatformEnv`, so the same actor consumes it.
 
 Observation groups (TensorDict, float32):
 - `policy`        o (44): [accelerometer_b (3), gyro_b (3), roll & pitch (2), q - q_nominal (12),
@@ -25,64 +25,31 @@ or |roll|, |pitch| > max_tilt_rad), or at `episode_length_s` (a truncation).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import torch
 from tensordict import TensorDict
 
-from lasmp.config import RoughStaticCfg, build_env_cfg
+from lasmp.config import build_env_cfg
 from lasmp.envs.backends.cpu import CpuBatchSim
 from lasmp.envs.base_env import BaseEnv, to_tensor
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, nominal_intrinsics, sample_intrinsics
 from lasmp.envs.moving_platform.rewards import RewardManager
-from lasmp.envs.rotations import euler_zyx_from_mat, quat_to_mat, rotate_inv, yaw_quat
+from lasmp.envs.robot import (
+    RobotIndex,
+    RobotIntrinsicsWriter,
+    RobotReadout,
+    proprioception,
+    read_robot,
+    screen_faults,
+    update_rows,
+)
+from lasmp.envs.rotations import yaw_quat
 from lasmp.envs.rough_static import rewards as rw
+from lasmp.envs.rough_static.cfg import RoughStaticCfg
 from lasmp.envs.rough_static.terrain import build_model
 from lasmp.robots import a1
 
 SPAWN_FOOTPRINT_M = 0.4  # half-side of the square under the robot searched for the highest ground
-
-
-class RobotIntrinsicsWriter:
-    """The robot part of `IntrinsicsWriter` (that one also needs the platform's actuators)."""
-
-    def __init__(self, sim: CpuBatchSim):
-        m = sim.model
-        self._trunk = m.body(a1.TRUNK_BODY_NAME).id
-        self._trunk_ipos0 = m.body_ipos[self._trunk].copy()
-        self._feet = np.array([m.geom(name).id for name in a1.FOOT_NAMES])
-        self._joint_act = np.array([m.actuator(name).id for name in a1.JOINT_NAMES])
-        self._body_mass = sim.expand("body_mass")
-        self._body_ipos = sim.expand("body_ipos")
-        self._geom_friction = sim.expand("geom_friction")
-        self._gainprm = sim.expand("actuator_gainprm")
-        self._biasprm = sim.expand("actuator_biasprm")
-
-    def write(self, ids: np.ndarray, p: Intrinsics) -> None:
-        ix = np.ix_(ids, self._joint_act)
-        self._body_mass[ids, self._trunk] = p.trunk_mass_kg
-        self._body_ipos[ids, self._trunk] = self._trunk_ipos0 + p.com_shift_m
-        self._geom_friction[np.ix_(ids, self._feet, [0])] = p.foot_friction[:, None, None]
-        self._gainprm[ix + (0,)] = p.joint_kp  # force = kp * ctrl - kp * q - kd * q_dot
-        self._biasprm[ix + (1,)] = -p.joint_kp
-        self._biasprm[ix + (2,)] = -p.joint_kd
-
-
-@dataclass
-class RobotReadout:
-    p_body_w: np.ndarray  # (n, 3) trunk origin, m
-    phi_body_w: np.ndarray  # (n, 3) roll, pitch, yaw (ZYX), rad
-    gravity_b: np.ndarray  # (n, 3) unit gravity direction, body frame
-    v_body_b: np.ndarray  # (n, 3) m/s
-    omega_body_b: np.ndarray  # (n, 3) rad/s
-    acc_imu_b: np.ndarray  # (n, 3) m/s²
-    gyro_b: np.ndarray  # (n, 3) rad/s
-    q: np.ndarray  # (n, 12) rad
-    q_dot: np.ndarray  # (n, 12) rad/s
-    tau: np.ndarray  # (n, 12) N·m
-    foot_contact: np.ndarray  # (n, 4) bool
-    body_collision: np.ndarray  # (n,) bool
 
 
 class RoughStaticEnv(BaseEnv):
@@ -96,20 +63,7 @@ class RoughStaticEnv(BaseEnv):
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
         super().__init__(cfg, sim, 12, int(round(cfg.episode_length_s / dt_s)), device)
         n = self.num_envs
-        root = model.joint(a1.ROOT_JOINT_NAME)
-        self.root_qpos, self.root_qvel = int(root.qposadr[0]), int(root.dofadr[0])
-        self.joint_qpos = np.array([model.joint(j).qposadr[0] for j in a1.JOINT_NAMES])
-        self.joint_qvel = np.array([model.joint(j).dofadr[0] for j in a1.JOINT_NAMES])
-        self.joint_act = np.array([model.actuator(j).id for j in a1.JOINT_NAMES])
-
-        def sens(name):
-            s = model.sensor(name)
-            return int(s.adr[0])
-
-        self.s_acc, self.s_gyro = sens("imu_acc"), sens("imu_gyro")
-        self.s_foot = np.array([sens(f"{leg}_foot_contact") for leg in a1.LEG_NAMES])  # found, then force
-        self.s_collision = np.array([sens(f"{b}_collision") for b in a1.NON_FOOT_COLLISION_GEOMS])
-
+        self.index = RobotIndex(model)
         self.writer = RobotIntrinsicsWriter(sim)
         self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.domain_rand.train.platform_kd_factor[0])
         self.q_nominal = np.asarray(a1.Q_NOMINAL_RAD)
@@ -135,27 +89,6 @@ class RoughStaticEnv(BaseEnv):
         self.readout: RobotReadout | None = None
         self.last_state: rw.RoughStepState | None = None
 
-    # -- state ---------------------------------------------------------------------------------
-    def read(self) -> RobotReadout:
-        qpos, qvel, sd = self.sim.qpos, self.sim.qvel, self.sim.sensordata
-        quat = qpos[:, self.root_qpos + 3 : self.root_qpos + 7]
-        r_wb = quat_to_mat(quat / np.linalg.norm(quat, axis=1, keepdims=True))
-        contact = sd[:, self.s_foot] > 0
-        return RobotReadout(
-            p_body_w=qpos[:, self.root_qpos : self.root_qpos + 3].copy(),
-            phi_body_w=euler_zyx_from_mat(r_wb),
-            gravity_b=-r_wb[:, 2, :],  # world -z in the body frame: R^T (0, 0, -1)
-            v_body_b=rotate_inv(r_wb, qvel[:, self.root_qvel : self.root_qvel + 3]),
-            omega_body_b=qvel[:, self.root_qvel + 3 : self.root_qvel + 6].copy(),
-            acc_imu_b=sd[:, self.s_acc : self.s_acc + 3].copy(),
-            gyro_b=sd[:, self.s_gyro : self.s_gyro + 3].copy(),
-            q=qpos[:, self.joint_qpos],
-            q_dot=qvel[:, self.joint_qvel],
-            tau=self.sim.actuator_force[:, self.joint_act].copy(),
-            foot_contact=contact,
-            body_collision=(sd[:, self.s_collision] > 0).any(axis=1),
-        )
-
     # -- commands and pushes -------------------------------------------------------------------
     def sample_commands(self, n: int) -> np.ndarray:
         c = self.cfg.commands
@@ -177,7 +110,8 @@ class RoughStaticEnv(BaseEnv):
         speed = self.rng.uniform(0.0, pc.max_mps, size=len(ids))
         dv = speed[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
         # the free joint's linear velocity is in the world frame
-        self.sim.qvel[ids, self.root_qvel : self.root_qvel + 2] += dv
+        root_qvel = self.index.root_qvel
+        self.sim.qvel[ids, root_qvel : root_qvel + 2] += dv
         self.sim.batch.forward(ids)  # derived quantities follow the new state
         self.push_time_left_s[ids] = self.rng.uniform(*pc.interval_s, size=len(ids))
         return dv
@@ -186,7 +120,7 @@ class RoughStaticEnv(BaseEnv):
     def _apply_actions(self, actions: np.ndarray) -> None:
         self.action_prev[:] = self.action
         self.action[:] = actions
-        self.sim.ctrl[:, self.joint_act] = self.q_nominal + self.cfg.control.action_scale * actions
+        self.sim.ctrl[:, self.index.joint_act] = self.q_nominal + self.cfg.control.action_scale * actions
         self.pushed[:] = False
         if self.cfg.pushes.enabled:
             due = np.flatnonzero(self.push_time_left_s <= 0.0)
@@ -196,13 +130,8 @@ class RoughStaticEnv(BaseEnv):
             self.push_time_left_s -= self.dt_s
 
     # -- evaluation ----------------------------------------------------------------------------
-    def _evaluate(self, faulted: np.ndarray):
-        r = self.read()
-        faulted |= (np.abs(r.q_dot) > self.cfg.termination.max_joint_vel_rad_s).any(axis=1)
-        if faulted.any():  # keep NaNs of diverged envs out of rewards and logs
-            for name, value in vars(r).items():
-                if value.dtype.kind == "f":
-                    setattr(r, name, np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0))
+    def _evaluate(self):
+        r, faulted = screen_faults(read_robot(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
         self.readout = r
         tilted = (np.abs(r.phi_body_w[:, :2]) > self.cfg.termination.max_tilt_rad).any(axis=1)
         fell = r.body_collision | tilted
@@ -241,7 +170,7 @@ class RoughStaticEnv(BaseEnv):
             "Termination/body_contact": float(r.body_collision.sum()),
             "Termination/tilt": float(tilted.sum()),
         }
-        return reward, fell, log
+        return reward, fell, faulted, log
 
     # -- resets --------------------------------------------------------------------------------
     def _reset_envs(self, ids: np.ndarray, terminated: np.ndarray, timed_out: np.ndarray) -> dict:
@@ -256,8 +185,7 @@ class RoughStaticEnv(BaseEnv):
             params = sample_intrinsics(n, dr.ranges, self.rng)
         else:
             params = nominal_intrinsics(n, dr.train.platform_kd_factor[0])
-        for name, value in vars(params).items():
-            getattr(self.intrinsics, name)[ids] = value
+        update_rows(self.intrinsics, ids, params)
         self.writer.write(ids, params)
 
         tc = self.cfg.terrain
@@ -267,12 +195,13 @@ class RoughStaticEnv(BaseEnv):
         ground = self.terrain.max_height_near(xy, SPAWN_FOOTPRINT_M)
         m = self.sim.model
         qpos = np.tile(m.qpos0, (n, 1))
-        qpos[:, self.root_qpos : self.root_qpos + 2] = xy
-        qpos[:, self.root_qpos + 2] = ground + self.trunk_height_m + self.cfg.init_state.foot_clearance_m
-        qpos[:, self.root_qpos + 3 : self.root_qpos + 7] = yaw_quat(yaw)
-        qpos[:, self.joint_qpos] = self.q_nominal
+        ix = self.index
+        qpos[:, ix.root_qpos : ix.root_qpos + 2] = xy
+        qpos[:, ix.root_qpos + 2] = ground + self.trunk_height_m + self.cfg.init_state.foot_clearance_m
+        qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(yaw)
+        qpos[:, ix.joint_qpos] = self.q_nominal
         ctrl = np.zeros((n, m.nu))
-        ctrl[:, self.joint_act] = self.q_nominal
+        ctrl[:, ix.joint_act] = self.q_nominal
         self.sim.reset(ids, qpos, np.zeros((n, m.nv)), ctrl, set_const=True)
 
         self._resample_commands(ids)
@@ -288,12 +217,10 @@ class RoughStaticEnv(BaseEnv):
     # -- observations --------------------------------------------------------------------------
     def _observations(self) -> TensorDict:
         if self.readout is None or self._fresh is not None:
-            self.readout = self.read()  # reset envs: their new state (cheap: one pass over arrays)
+            self.readout = read_robot(self.sim, self.index)  # reset envs: their new state (one pass)
         r = self.readout
         n = self.num_envs
-        o = np.concatenate(
-            [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - self.q_nominal, r.q_dot, self.action], axis=1
-        )
+        o = proprioception(r, self.action)
         x_exp = np.concatenate([r.foot_contact, r.v_body_b, np.zeros((n, 6))], axis=1)
         x_imp = self.intrinsics.x_imp()
         height = r.p_body_w[:, 2] - self.terrain.height_at(r.p_body_w[:, :2])

@@ -24,7 +24,8 @@ import mujoco
 import numpy as np
 from scipy.ndimage import uniform_filter
 
-from lasmp.config import SimCfg, TerrainCfg
+from lasmp.config import SimCfg
+from lasmp.envs.rough_static.cfg import TerrainCfg
 from lasmp.robots import a1
 
 HFIELD_NAME = "terrain"

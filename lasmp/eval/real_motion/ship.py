@@ -82,7 +82,7 @@ Frames and signs
 
 Sea states (:data:`SEA_STATES`): the World Meteorological Organization sea state code (WMO
 Manual on Codes, WMO-No. 306, code table 3700: 3 "slight" Hs 0.5-1.25 m, 4 "moderate"
-1.25-2.5 m, 5 "rough" 2.5-4 m) with the mean Hs and the most probable modal (peak) period of each
+1.25-2.5 m, 5 "rough" 2.5-4 m, 6 "very rough" 4-6 m) with the mean Hs and the most probable modal (peak) period of each
 code in the open North Atlantic, from Bales, Lee and Voelker (1981), "Standardized wave and wind
 environments for NATO operational areas", DTNSRDC/SPD-0919-01.
 
@@ -117,6 +117,7 @@ SEA_STATES: dict[str, tuple[float, float]] = {
     "sea_state_3": (0.88, 7.5),  # slight, Hs 0.5-1.25 m
     "sea_state_4": (1.88, 8.8),  # moderate, Hs 1.25-2.5 m
     "sea_state_5": (3.25, 9.7),  # rough, Hs 2.5-4 m
+    "sea_state_6": (5.0, 12.4),  # very rough, Hs 4-6 m
 }
 
 # the platform world's training workspace (see notes): horizontal half-range, vertical range, tilt

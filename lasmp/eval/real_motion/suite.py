@@ -1,8 +1,8 @@
 """The real-motion suite: named scenarios, their episodes, the platform drive they run on, and results.
 
-Scenarios (:data:`SCENARIOS`): ship decks in three sea states, a city bus (stop-and-go, emergency
-brake), a train (curve, straight), a lift (up, down, emergency stop) and an aircraft in light and
-moderate turbulence, each a :class:`~lasmp.eval.real_motion.motion.Motion` of
+Scenarios (:data:`SCENARIOS`): ship decks in four sea states (WMO codes 3-6), a city bus
+(stop-and-go, emergency brake), a train (curve, straight), a lift (up, down, emergency stop) and an
+aircraft in light, moderate and severe turbulence, each a :class:`~lasmp.eval.real_motion.motion.Motion` of
 :data:`~lasmp.eval.real_motion.motion.DEFAULT_DURATION_S` from its generator with seed 0 (one
 realisation per scenario, the same for every controller).
 
@@ -53,6 +53,7 @@ SCENARIOS: dict[str, Callable[[], Motion]] = {
     "ship_sea_state_3": _variant("ship", "ship_deck", "sea_state_3"),
     "ship_sea_state_4": _variant("ship", "ship_deck", "sea_state_4"),
     "ship_sea_state_5": _variant("ship", "ship_deck", "sea_state_5"),
+    "ship_sea_state_6": _variant("ship", "ship_deck", "sea_state_6"),
     "bus_stop_and_go": _variant("bus", "city_bus", "stop_and_go"),
     "bus_emergency_brake": _variant("bus", "city_bus", "emergency_brake"),
     "train_curve": _variant("train", "train", "curve"),
@@ -62,6 +63,7 @@ SCENARIOS: dict[str, Callable[[], Motion]] = {
     "lift_emergency_stop": _variant("lift", "lift", "emergency_stop"),
     "aircraft_light": _variant("aircraft", "aircraft", "light"),
     "aircraft_moderate": _variant("aircraft", "aircraft", "moderate"),
+    "aircraft_severe": _variant("aircraft", "aircraft", "severe"),
 }
 
 # env.platform overrides per drive (README "Real-motion suite")
@@ -216,7 +218,6 @@ def platform_tracking(episodes: SuiteEpisodes, env_overrides_: dict) -> dict[str
     per scenario, until its first episode ends. RMS of the translational acceleration (second
     differences of the positions at the policy rate) of the platform and of its reference, and RMS
     tracking errors (translation m, rotation rad as the norm of the three joint angles)."""
-    from lasmp.config import build_env_cfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.eval.run import BenchmarkSource
     from lasmp.eval.tracking import record_platform
@@ -227,7 +228,7 @@ def platform_tracking(episodes: SuiteEpisodes, env_overrides_: dict) -> dict[str
         episodes.names,
     )
     n = len(episodes.names)
-    env = MovingPlatformEnv(build_env_cfg({**env_overrides_, "num_envs": n}))
+    env = MovingPlatformEnv({**env_overrides_, "num_envs": n})
     env.episode_source = BenchmarkSource(one_robot, n, n)
     env.reset()
     rec = record_platform(env)

@@ -1,8 +1,9 @@
-"""Actor-side layout of the LAS-MP policy inputs (SPEC §7-8).
+"""The layout of the policy's observation groups, as the actor reads them (SPEC §7-8).
 
-The backbone b_theta is the MLP of `LasmpActor` (an rsl_rl `MLPModel`, in `policy.py`); this file
-holds what defines its inputs: the observation groups, the names and selections of x_exp for the
-ablations, and the alignment command rebuilt from estimates.
+The group names, the columns of o and x_exp the actor picks, the x_exp selections of the
+ablations, and the alignment command rebuilt from x_exp estimates. The envs write these groups
+(`lasmp/envs/robot.py`: o; `lasmp/envs/moving_platform/env.py`: the others); the actor is
+`LasmpActor` in `policy.py`.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ GROUP_IMPLICIT = "priv_implicit"
 GROUP_ALIGNMENT = "alignment"
 GROUP_COMMAND = "command"  # a velocity command [v_x, v_y, omega_z] in B (rough_static task)
 
-GYRO_Z_COL = 5  # o = [acc (3), gyro (3), ...]: measured yaw rate omega^B_body,z, rad/s
+# o = [acc (3), gyro (3), ...] (lasmp/envs/robot.py: proprioception): measured yaw rate omega^B_body,z, rad/s
+GYRO_Z_COL = 5
 
 # x_exp = [contacts (4), v_body_b (3) m/s, v_plf_b (3) m/s, omega_plf_b (3) rad/s]
 X_EXP_NAMES: tuple[str, ...] = (
@@ -37,10 +39,28 @@ X_EXP_NAMES: tuple[str, ...] = (
 )
 U_ALN_NAMES: tuple[str, ...] = ("u_aln_vx", "u_aln_vy", "u_aln_wz")
 
+
+# Named column ranges of x_exp (n, 13), as functions rather than slice constants: TorchScript, which
+# compiles the deployable policy (export.py), takes no global slice or int.
+def v_body_xy(x_exp: torch.Tensor) -> torch.Tensor:
+    """(n, 2) trunk velocity x, y in B, m/s."""
+    return x_exp[:, 4:6]
+
+
+def v_plf_xy(x_exp: torch.Tensor) -> torch.Tensor:
+    """(n, 2) velocity of the platform point under the trunk, x, y in B, m/s."""
+    return x_exp[:, 7:9]
+
+
+def omega_plf_z(x_exp: torch.Tensor) -> torch.Tensor:
+    """(n, 1) platform yaw rate in B, rad/s."""
+    return x_exp[:, 12:13]
+
+
 # selected x_exp columns per `explicit` option
 EXPLICIT_SELECTIONS: dict[str, tuple[int, ...]] = {
-    "all": tuple(range(13)),
-    "no_platform": tuple(range(7)),  # contacts + body velocity
+    "all": tuple(range(len(X_EXP_NAMES))),
+    "no_platform": tuple(range(X_EXP_NAMES.index("v_plf_x"))),  # contacts + body velocity
     "none": (),
 }
 
@@ -55,6 +75,6 @@ def explicit_indices(explicit: str) -> tuple[int, ...]:
 def alignment_from_estimates(x_exp_hat: torch.Tensor, gyro_z: torch.Tensor) -> torch.Tensor:
     """u_aln_hat = [v_plf_xy - v_body_xy, omega_plf_z - gyro_z] from a full (n, 13) x_exp estimate
     in raw units (m/s, rad/s) and the measured yaw rate gyro_z (n,) rad/s."""
-    v_rel = x_exp_hat[:, 7:9] - x_exp_hat[:, 4:6]
-    w_rel = x_exp_hat[:, 12:13] - gyro_z.unsqueeze(-1)
+    v_rel = v_plf_xy(x_exp_hat) - v_body_xy(x_exp_hat)
+    w_rel = omega_plf_z(x_exp_hat) - gyro_z.unsqueeze(-1)
     return torch.cat([v_rel, w_rel], dim=-1)

@@ -1,0 +1,148 @@
+"""Checkpoint files: writing, reading, compatibility checks, the latest one of a run, its config.
+
+A checkpoint (format "lasmp-checkpoint-v1") is a dict saved with `torch.save`:
+- the learner's state (`LasmpRunner.save`: all networks with their normalizers, both optimizers);
+- `iter`: the last *completed* iteration (a resume continues at iter + 1);
+- `config`: the resolved TrainCfg as a plain dict; `obs_layout` and `num_actions`;
+- `env_state`: the env's own state (curriculum level and window);
+- `rng_state`: torch's and the env's numpy random states at the save, so that a resume continues
+  the random streams instead of replaying them from the seed (optional: older checkpoints lack it).
+It is written to a temporary file in the same directory and renamed over the target
+(`atomic_torch_save`), so an interrupted save never leaves a truncated checkpoint behind.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from lasmp.atomic import atomic_open
+
+CHECKPOINT_FORMAT = "lasmp-checkpoint-v1"
+REQUIRED_KEYS = ("actor_state_dict", "critic_state_dict", "config", "obs_layout", "num_actions", "iter")
+
+
+class CheckpointError(ValueError):
+    """A checkpoint is missing, unreadable or does not fit this run; the message says why."""
+
+
+def obs_layout(obs) -> dict[str, list[int]]:
+    """Per-group shapes of one env's observation (batch dimension dropped)."""
+    return {key: list(value.shape[1:]) for key, value in obs.items()}
+
+
+def latest_checkpoint(run_dir: str | Path) -> Path:
+    """The `model_<N>.pt` of `run_dir` with the largest N (numerically: model_10 after model_9)."""
+    run_dir = Path(run_dir)
+    found = []
+    for path in run_dir.glob("model_*.pt"):
+        m = re.fullmatch(r"model_(\d+)\.pt", path.name)
+        if m:
+            found.append((int(m.group(1)), path))
+    if not found:
+        raise CheckpointError(f"no checkpoint model_<N>.pt in {run_dir}")
+    return max(found)[1]
+
+
+def read_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
+    """Load and sanity-check a checkpoint file (a run directory means its latest checkpoint)."""
+    path = Path(path)
+    if path.is_dir():
+        path = latest_checkpoint(path)
+    if not path.exists():
+        raise CheckpointError(f"checkpoint {path} does not exist")
+    try:
+        data = torch.load(path, map_location=map_location, weights_only=False)
+    except Exception as err:  # truncated zip, not a torch file, ...
+        raise CheckpointError(
+            f"checkpoint {path} is unreadable (truncated or not a checkpoint): {err}"
+        ) from err
+    if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
+        raise CheckpointError(f"{path} is not a lasmp checkpoint (no format '{CHECKPOINT_FORMAT}')")
+    for key in REQUIRED_KEYS:
+        if key not in data:
+            raise CheckpointError(f"checkpoint {path} lacks '{key}'")
+    data["path"] = str(path)
+    return data
+
+
+def atomic_torch_save(obj, path: str | Path) -> None:
+    with atomic_open(path) as f:
+        torch.save(obj, f)
+
+
+def check_compatible(data: dict, env) -> None:
+    """Refuse a checkpoint whose observation layout or action size differs from the env's."""
+    have = obs_layout(env.get_observations())
+    want = data["obs_layout"]
+    for group in sorted(set(have) | set(want)):
+        if have.get(group) != want.get(group):
+            raise CheckpointError(
+                f"checkpoint {data.get('path', '')} was trained with observation group '{group}' of shape "
+                f"{want.get(group)}, but this env gives {have.get(group)}"
+            )
+    if int(data["num_actions"]) != env.num_actions:
+        raise CheckpointError(f"checkpoint has {data['num_actions']} actions, the env {env.num_actions}")
+
+
+def check_finite(state_dicts: dict, where: str) -> None:
+    """Raise if any floating tensor in the (nested) state dicts is non-finite, naming the first one."""
+
+    def walk(obj, name):
+        if isinstance(obj, torch.Tensor):
+            if obj.is_floating_point() and not torch.isfinite(obj).all():
+                raise FloatingPointError(f"{where}: non-finite values in {name}")
+        elif isinstance(obj, dict):
+            for key, value in obj.items():
+                walk(value, f"{name}.{key}" if name else str(key))
+        elif isinstance(obj, (list, tuple)):
+            for i, value in enumerate(obj):
+                walk(value, f"{name}[{i}]")
+
+    walk(state_dicts, "")
+
+
+def rng_state(env_rng: np.random.Generator) -> dict:
+    """torch's CPU (and CUDA, if any) and the env's numpy random states."""
+    state = {"torch": torch.get_rng_state(), "numpy_env": env_rng.bit_generator.state}
+    if torch.cuda.is_available() and torch.cuda.is_initialized():
+        state["torch_cuda"] = torch.cuda.get_rng_state_all()
+    return state
+
+
+def set_rng_state(state: dict, env_rng: np.random.Generator) -> None:
+    """Restore `rng_state` output (torch CPU, CUDA where saved and present, the env's numpy stream)."""
+    torch.set_rng_state(state["torch"])
+    if "torch_cuda" in state and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(state["torch_cuda"])
+    env_rng.bit_generator.state = state["numpy_env"]
+
+
+def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | None = None,
+                   env_overrides: dict | None = None):  # fmt: skip
+    """The TrainCfg saved in a checkpoint, with only num_envs, seed (and trajectory file, and the
+    given nested env overrides) changed; CheckpointError if today's code cannot rebuild it."""
+    from omegaconf import OmegaConf
+
+    from lasmp.train import to_train_cfg  # lasmp.train imports the runner, which imports this module
+
+    if not data.get("config"):
+        raise CheckpointError(f"checkpoint {data['path']} carries no config to rebuild the policy from")
+    try:
+        conf = OmegaConf.create(data["config"])
+        conf.env.num_envs = int(num_envs)
+        conf.seed = int(seed)
+        conf.device = "cpu"
+        conf.resume = None
+        conf.runner.log_dir = None
+        if trajectories is not None:
+            conf.env.trajectory.file = str(trajectories)
+        conf.env = OmegaConf.merge(conf.env, OmegaConf.create(env_overrides or {}))
+        return to_train_cfg(conf)
+    except Exception as err:  # unknown/removed keys, out-of-range values: the code moved on
+        raise CheckpointError(
+            f"checkpoint {data['path']} has a config this code cannot rebuild: {err}"
+        ) from err

@@ -1,0 +1,148 @@
+"""The moving-platform task's env config: `MovingPlatformCfg` and its parts (platform, trajectories,
+curriculum, rewards, termination), on top of the shared `lasmp.config.BaseEnvCfg`.
+
+Hydra registers it as the `env` option `moving_platform` (`lasmp/train_cfg.py`). This module imports
+the reward terms' registry (to check weight names) and the trajectory splines (to check kind and
+degree), never the env: `lasmp.envs.moving_platform.env` imports this module.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+from lasmp.config import (
+    BaseEnvCfg,
+    ConfigError,
+    DomainRandCfg,
+    InitStateCfg,
+    check_positive,
+)
+from lasmp.envs import trajectories as trj
+from lasmp.envs.moving_platform.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_TERMS
+from lasmp.envs.reward_registry import check_reward_weights
+
+
+@dataclass
+class PlatformCfg:
+    size_m: list[float] = field(default_factory=lambda: [2.0, 2.0, 0.2])  # width, length, height, SPEC §3
+    # (ours) so heavy that the robot does not disturb it at the soft gains below: kp = M omega_n^2, so
+    # the robot's weight sags it m_robot g / kp = 1.2 mm at factor 1 (800 kg would sag 15 cm)
+    mass_kg: float = 1.0e5
+    friction: float = 1.0  # surface friction; a contact uses the larger of foot and platform values
+    # The paper's platform gains are unitless factors (Table B). We read the stiffness factor as
+    # kp / M in s^-2 per axis (M the platform's mass or inertia about the axis): at factor 1 the axis
+    # is a 2nd-order system of natural frequency omega_n_rad_s = 1 rad/s, and the training range
+    # 1.0-1.5 gives 1.0-1.22 rad/s. The damping factor scales kd = 2 zeta M omega_n / kd_factor_ref,
+    # so the paper's ~0.025 gives damping ratio zeta (its literal reading, zeta ~ 0.01, would leave
+    # the platform ringing). Calibrated against the paper's Stand Still row: README "The paper's world".
+    omega_n_rad_s: float = 1.0
+    damping_ratio: float = 0.7  # (ours) at kd factor == kd_factor_ref
+    kd_factor_ref: float = 0.025  # midpoint of the paper's training damping factor range
+    # False (ours, calibrated): a PD on the position target only, force = kp (x_ref - x) - kd v, as a
+    # simulator's position drive (Isaac Gym's DOF targets) does; the platform then follows the
+    # reference as a 2nd-order low-pass filter. True: force = kp (x_ref - x) + kd (v_ref - v).
+    velocity_feedforward: bool = False
+
+    def validate(self, p: str):
+        if len(self.size_m) != 3 or min(self.size_m) <= 0:
+            raise ConfigError(f"{p}.size_m must be three positive lengths, got {list(self.size_m)}")
+        for name in ("mass_kg", "friction", "omega_n_rad_s", "damping_ratio", "kd_factor_ref"):
+            check_positive(f"{p}.{name}", getattr(self, name))
+
+
+@dataclass
+class TrajectoryCfg:
+    split: str = "train"  # waypoint coordinate ranges: train | test (identical coordinates, N differs)
+    duration_s: float = 10.0  # T, also the episode length
+    # waypoints as control points of a B-spline (SPEC §4), or "interpolating" (through them: harder)
+    kind: str = "approximating"
+    degree: int = 10  # approximating B-spline degree: calibrated to the paper's 7.12 m / 0.69 m/s (ours)
+    file: str | None = None  # a trajectory file (lasmp-trajectories .npz): episodes replay its rows in order
+
+    def validate(self, p: str):
+        if self.split not in ("train", "test"):
+            raise ConfigError(f"{p}.split must be 'train' or 'test', got {self.split!r}")
+        check_positive(f"{p}.duration_s", self.duration_s)
+        try:
+            trj.SplineSpec(self.kind, self.degree)
+        except ValueError as err:
+            raise ConfigError(f"{p}.kind / {p}.degree: {err}") from None
+
+    @property
+    def spline(self) -> trj.SplineSpec:
+        return trj.SplineSpec(self.kind, self.degree)
+
+
+@dataclass
+class CurriculumCfg:
+    enabled: bool = True  # False: N is drawn uniformly from the split's range every episode
+    level_min: int = 5
+    level_max: int = 15
+    promote_success_rate: float = 0.8
+    window_episodes: int = 200  # (ours) episodes at the current level over which success is measured
+    replay_lower_fraction: float = 0.2  # (ours) share of episodes that replay mastered levels
+
+    def validate(self, p: str):
+        if not 1 <= self.level_min <= self.level_max:
+            raise ConfigError(
+                f"{p}: need 1 <= level_min <= level_max, got {self.level_min}, {self.level_max}"
+            )
+        if not 0 < self.promote_success_rate <= 1:
+            raise ConfigError(f"{p}.promote_success_rate must be in (0, 1], got {self.promote_success_rate}")
+        if self.window_episodes < 1:
+            raise ConfigError(f"{p}.window_episodes must be >= 1, got {self.window_episodes}")
+        if not 0 <= self.replay_lower_fraction < 1:
+            raise ConfigError(
+                f"{p}.replay_lower_fraction must be in [0, 1), got {self.replay_lower_fraction}"
+            )
+
+
+@dataclass
+class RewardsCfg:
+    weights: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_REWARD_WEIGHTS))
+    sigma_center_m: float = 1.2  # k2
+    sigma_alignment: float = 0.3  # k4
+    sigma_level_rad: float = 0.2  # k6
+    sigma_height_m: float = 0.1  # k8
+    h_des_m: float = 0.37  # desired trunk height, measured from `h_des_from`
+    # where h_des is measured from (SPEC §13): "centre" = the platform frame's origin, its CoM 0.1 m
+    # below the top (the trunk 0.27 m above the surface); "top" = the top surface (0.37 m above it).
+    # "top" matches the paper's Stand Still height violation best but drives the policy to a tall,
+    # tippy stance that never masters level 5; "centre" promotes (README "The paper's world").
+    h_des_from: str = "centre"
+    f_tol_n: float = 50.0
+    t_swing_des_s: float = 0.1
+    t_contact_des_s: float = 0.5
+
+    def validate(self, p: str):
+        check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
+        if self.h_des_from not in ("top", "centre"):
+            raise ConfigError(f"{p}.h_des_from must be 'top' or 'centre', got {self.h_des_from!r}")
+        for f in fields(self):
+            if f.name not in ("weights", "h_des_from"):
+                check_positive(f"{p}.{f.name}", getattr(self, f.name))
+
+    def h_des_p_m(self, plf_top_m: float) -> float:
+        """h_des in the platform frame (origin at its CoM), m: what rewards and metrics compare p_body_p,z to."""
+        return self.h_des_m + (plf_top_m if self.h_des_from == "top" else 0.0)
+
+
+@dataclass
+class TerminationCfg:
+    fall_below_top_m: float = 0.0  # a trunk CoM lower than the top surface + this counts as a fall
+    footprint_margin_m: float = 0.0  # a trunk CoM beyond the platform's edge + this counts as off
+    max_joint_vel_rad_s: float = 200.0  # beyond this the simulation is considered diverged (a fault)
+
+    def validate(self, p: str):
+        check_positive(f"{p}.max_joint_vel_rad_s", self.max_joint_vel_rad_s)
+
+
+@dataclass
+class MovingPlatformCfg(BaseEnvCfg):
+    init_state: InitStateCfg = field(default_factory=InitStateCfg)
+    domain_rand: DomainRandCfg = field(default_factory=DomainRandCfg)
+    platform: PlatformCfg = field(default_factory=PlatformCfg)
+    trajectory: TrajectoryCfg = field(default_factory=TrajectoryCfg)
+    curriculum: CurriculumCfg = field(default_factory=CurriculumCfg)
+    rewards: RewardsCfg = field(default_factory=RewardsCfg)
+    termination: TerminationCfg = field(default_factory=TerminationCfg)

@@ -1,0 +1,194 @@
+"""The A1 inside a batch of simulations, shared by every task.
+
+- where its state lives: `RobotIndex` (addresses in qpos, qvel, ctrl, sensordata, site_xpos);
+- what it reads: `read_robot` -> `RobotReadout` (trunk pose and velocities, IMU, joints, feet);
+- what it is: `RobotIntrinsics` (the randomized trunk mass, CoM shift, foot friction, PD gains),
+  written into the batch's per-env model by `RobotIntrinsicsWriter`;
+- what the policy sees of it: `proprioception`, o_t (`OBS_DIM` numbers, sensors only);
+- which envs diverged: `screen_faults`, so that NaNs stay out of rewards, logs and observations.
+
+A task adds its world on top (`moving_platform/readout.py` extends the index and the readout with
+the platform's quantities). The scene holds the A1 of `lasmp.robots.a1` with its names and the
+sensors `imu_acc`, `imu_gyro`, `<leg>_foot_contact` (found + net force, world frame) and
+`<body>_collision` (found) for every body of `a1.NON_FOOT_COLLISION_GEOMS`.
+
+numpy float64, (num_envs, ...). Frames: `w` world, `b` trunk (origin at the trunk link origin,
+the IMU site; x forward, y left, z up). We put b at the link origin rather than at the randomized
+CoM so that its velocities are what an IMU on the real trunk measures.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import TypeVar
+
+import mujoco
+import numpy as np
+
+from lasmp.envs.backends.cpu import CpuBatchSim
+from lasmp.envs.rotations import euler_zyx_from_mat, quat_to_mat, rotate_inv
+from lasmp.robots import a1
+
+OBS_DIM = 44  # o: accelerometer (3), gyro (3), roll & pitch (2), q - q_nominal (12), q_dot (12), a_{t-1} (12)
+
+
+def sensor_columns(model: mujoco.MjModel, name: str) -> slice:
+    """The columns of sensor `name` in sensordata."""
+    s = model.sensor(name)
+    return slice(int(s.adr[0]), int(s.adr[0] + s.dim[0]))
+
+
+class RobotIndex:
+    """Addresses of the A1's state, actuators and sensors in a scene's model (computed once)."""
+
+    def __init__(self, model: mujoco.MjModel):
+        root = model.joint(a1.ROOT_JOINT_NAME)
+        self.root_qpos = int(root.qposadr[0])  # free joint: position (3), then quaternion (w, x, y, z)
+        self.root_qvel = int(root.dofadr[0])  # free joint: linear velocity (3, in w), angular (3, in b)
+        self.joint_qpos = np.array([model.joint(j).qposadr[0] for j in a1.JOINT_NAMES])
+        self.joint_qvel = np.array([model.joint(j).dofadr[0] for j in a1.JOINT_NAMES])
+        self.joint_act = np.array([model.actuator(j).id for j in a1.JOINT_NAMES])
+        self.acc = sensor_columns(model, "imu_acc")
+        self.gyro = sensor_columns(model, "imu_gyro")
+        self.foot_contact = [sensor_columns(model, f"{leg}_foot_contact") for leg in a1.LEG_NAMES]
+        self.collision = np.array(
+            [model.sensor(f"{b}_collision").adr[0] for b in a1.NON_FOOT_COLLISION_GEOMS]
+        )
+        self.foot_site = np.array([model.site(f).id for f in a1.FOOT_NAMES])
+
+
+@dataclass
+class RobotReadout:
+    p_body_w: np.ndarray  # (n, 3) trunk origin, m
+    r_wb: np.ndarray  # (n, 3, 3) trunk orientation
+    phi_body_w: np.ndarray  # (n, 3) roll, pitch, yaw (ZYX), rad
+    gravity_b: np.ndarray  # (n, 3) unit gravity direction, body frame
+    v_body_b: np.ndarray  # (n, 3) m/s
+    omega_body_b: np.ndarray  # (n, 3) rad/s, true (the gyro reads the same, noise-free)
+    acc_imu_b: np.ndarray  # (n, 3) accelerometer (specific force), m/s^2: +g on body z at rest
+    gyro_b: np.ndarray  # (n, 3) rad/s
+    q: np.ndarray  # (n, 12) rad
+    q_dot: np.ndarray  # (n, 12) rad/s
+    tau: np.ndarray  # (n, 12) N·m
+    foot_contact: np.ndarray  # (n, 4) bool
+    f_feet_w: np.ndarray  # (n, 4, 3) contact force ON each foot, world frame, N
+    body_collision: np.ndarray  # (n,) bool, a trunk/hip/thigh/calf geom touches anything
+
+
+AnyReadout = TypeVar("AnyReadout", bound=RobotReadout)  # a task's readout extends the robot's
+
+
+def read_robot(sim: CpuBatchSim, ix: RobotIndex, rows: np.ndarray | None = None) -> RobotReadout:
+    """The robot's quantities in all envs, or in envs `rows` only (in that order); arrays of their own."""
+    qpos, qvel, sd, actuator_force = sim.qpos, sim.qvel, sim.sensordata, sim.actuator_force
+    if rows is not None:
+        qpos, qvel, sd, actuator_force = (x[rows] for x in (qpos, qvel, sd, actuator_force))
+    quat = qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7]
+    r_wb = quat_to_mat(quat / np.linalg.norm(quat, axis=1, keepdims=True))
+    contact = np.stack([sd[:, s] for s in ix.foot_contact], axis=1)  # (n, 4, 4): found, force (3)
+    foot_contact = contact[:, :, 0] > 0
+    return RobotReadout(
+        p_body_w=qpos[:, ix.root_qpos : ix.root_qpos + 3].copy(),
+        r_wb=r_wb,
+        phi_body_w=euler_zyx_from_mat(r_wb),
+        gravity_b=-r_wb[:, 2, :],  # world -z in the body frame: R^T (0, 0, -1)
+        v_body_b=rotate_inv(r_wb, qvel[:, ix.root_qvel : ix.root_qvel + 3]),
+        omega_body_b=qvel[:, ix.root_qvel + 3 : ix.root_qvel + 6].copy(),
+        acc_imu_b=sd[:, ix.acc].copy(),
+        gyro_b=sd[:, ix.gyro].copy(),
+        q=qpos[:, ix.joint_qpos],
+        q_dot=qvel[:, ix.joint_qvel],
+        tau=actuator_force[:, ix.joint_act].copy(),
+        foot_contact=foot_contact,
+        # the sensor reports the force of the foot on the other body; the force on the foot is its negative
+        f_feet_w=-contact[:, :, 1:4] * foot_contact[:, :, None],
+        body_collision=(sd[:, ix.collision] > 0).any(axis=1),
+    )
+
+
+def update_rows(target, rows: np.ndarray, sub) -> None:
+    """In place: rows `rows` of every array field of dataclass `target` (a readout, intrinsics) take
+    the values of `sub`, the same kind of dataclass holding those rows only."""
+    for name, value in vars(sub).items():
+        getattr(target, name)[rows] = value
+
+
+def proprioception(r: RobotReadout, last_action: np.ndarray) -> np.ndarray:
+    """o_t (n, OBS_DIM) = [acc_imu_b (3) m/s^2, gyro_b (3) rad/s, roll & pitch (2) rad,
+    q - q_nominal (12) rad, q_dot (12) rad/s, a_{t-1} (12)]: what the real robot's sensors give.
+    q is centred at the nominal stance (ours, as legged_gym)."""
+    return np.concatenate(
+        [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - a1.Q_NOMINAL_RAD, r.q_dot, last_action], axis=1
+    )
+
+
+def screen_faults(r: AnyReadout, max_joint_vel_rad_s: float) -> tuple[AnyReadout, np.ndarray]:
+    """(the readout, with every non-finite value replaced by 0 if it holds any; the (n,) mask of the
+    envs it shows faulted: a non-finite value in any field, or a joint faster than
+    max_joint_vel_rad_s, a simulation running away before its state turns non-finite).
+
+    `r` may be a task's extension of `RobotReadout`; it is not modified (the clean one is a copy).
+    The physics backend flags its own faults (MuJoCo errors, warnings); the caller combines both.
+    """
+    faulted = (np.abs(r.q_dot) > max_joint_vel_rad_s).any(axis=1)
+    floats = {name: value for name, value in vars(r).items() if value.dtype.kind == "f"}
+    for value in floats.values():
+        faulted |= ~np.isfinite(value.reshape(len(value), -1)).all(axis=1)
+    if faulted.any():
+        zeroed = {name: np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0) for name, x in floats.items()}
+        r = dataclasses.replace(r, **zeroed)
+    return r, faulted
+
+
+@dataclass
+class RobotIntrinsics:
+    """The robot's randomized parameters; also the implicit privileged state x_imp."""
+
+    trunk_mass_kg: np.ndarray  # (n,)
+    com_shift_m: np.ndarray  # (n, 3) shift of the trunk CoM from its nominal place, trunk frame
+    foot_friction: np.ndarray  # (n,) sliding friction coefficient of all four feet
+    joint_kp: np.ndarray  # (n, 12) N·m/rad
+    joint_kd: np.ndarray  # (n, 12) N·m·s/rad
+
+    def x_imp(self) -> np.ndarray:
+        """(n, 29) implicit privileged state [trunk mass (1), CoM shift (3), foot friction (1),
+        Kp (12), Kd (12)], SI units."""
+        return np.concatenate(
+            [
+                self.trunk_mass_kg[:, None],
+                self.com_shift_m,
+                self.foot_friction[:, None],
+                self.joint_kp,
+                self.joint_kd,
+            ],
+            axis=1,
+        )
+
+
+class RobotIntrinsicsWriter:
+    """Writes the `RobotIntrinsics` of some envs into the batch's per-simulation model fields (a task
+    with actuators of its own extends it)."""
+
+    def __init__(self, sim: CpuBatchSim):
+        m = sim.model
+        self._trunk = m.body(a1.TRUNK_BODY_NAME).id
+        self._trunk_ipos0 = m.body_ipos[self._trunk].copy()
+        self._feet = np.array([m.geom(name).id for name in a1.FOOT_NAMES])
+        self._joint_act = np.array([m.actuator(name).id for name in a1.JOINT_NAMES])
+        self._body_mass = sim.expand("body_mass")
+        self._body_ipos = sim.expand("body_ipos")
+        self._geom_friction = sim.expand("geom_friction")
+        self._gainprm = sim.expand("actuator_gainprm")
+        self._biasprm = sim.expand("actuator_biasprm")
+        assert m.actuator_biastype[self._joint_act[0]] == mujoco.mjtBias.mjBIAS_AFFINE
+
+    def write(self, ids: np.ndarray, p: RobotIntrinsics) -> None:
+        ix = np.ix_(ids, self._joint_act)
+        self._body_mass[ids, self._trunk] = p.trunk_mass_kg
+        self._body_ipos[ids, self._trunk] = self._trunk_ipos0 + p.com_shift_m
+        self._geom_friction[np.ix_(ids, self._feet, [0])] = p.foot_friction[:, None, None]
+        # MuJoCo position actuator: force = kp * ctrl - kp * q - kd * q_dot
+        self._gainprm[ix + (0,)] = p.joint_kp
+        self._biasprm[ix + (1,)] = -p.joint_kp
+        self._biasprm[ix + (2,)] = -p.joint_kd

@@ -1,0 +1,181 @@
+"""The trajectory file format (``.npz``, version 2): :func:`save`, :func:`load`, and helpers.
+
+``format`` = "lasmp-trajectories", ``version`` = 2, ``kind`` = one of
+
+* "waypoints" (generated sets, compact): ``knot_times_s`` (M, Kmax) float64 and
+  ``waypoints`` (M, Kmax, 6) float64 -- the knots *including* knot 0 (t = 0, zero pose) --
+  padded at the end of each row with NaN; ``n_waypoints`` (M,) int (row m has
+  ``n_waypoints[m] + 1`` knots); ``spline`` ("approximating" or "interpolating") and
+  ``spline_degree`` (int): the construction, so the file rebuilds the same motion whatever
+  today's defaults are.
+* "samples" (user-made): ``t_s`` (K,) shared times, or (M, K) per-row times padded at the
+  end with NaN, and ``poses`` (M, K, 6) (NaN where the times are NaN). Rebuilt with
+  not-a-knot ends.
+
+Optional ``meta_json``: a JSON string (e.g. split and seed), available as ``traj.meta``.
+Version 1 files (the old interpolating-only generator, which recorded no construction) are
+refused with an error that says how to regenerate them.
+
+:func:`read_npz`, :func:`check_version`, :func:`waypoint_arrays` and :func:`waypoints_from_arrays`
+are shared with the benchmark file (:mod:`lasmp.eval.benchmark`), which stores its trajectories
+in the "waypoints" layout.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+
+import numpy as np
+
+from lasmp.atomic import atomic_open
+from lasmp.envs.trajectories.splines import KIND_NAMES, SAMPLES, PiecewisePoly, SplineSpec
+from lasmp.envs.trajectories.user_made import TrajectoryFileError, check_knots
+
+FORMAT_NAME = "lasmp-trajectories"
+FORMAT_VERSION = 2
+
+
+def waypoint_arrays(traj: PiecewisePoly) -> dict[str, np.ndarray]:
+    """The "waypoints" layout of a generated set (one construction): knots, N, spline kind and degree."""
+    kinds, degrees = np.unique(traj.kind), np.unique(traj.degree)
+    if len(kinds) != 1 or int(kinds[0]) == SAMPLES or len(degrees) != 1:
+        raise ValueError(
+            "a waypoints file holds generated rows of one construction (kind and degree); "
+            f"got kinds {[KIND_NAMES[k] for k in kinds]} and degrees {degrees.tolist()}"
+        )
+    return {
+        "knot_times_s": np.ascontiguousarray(traj.knot_times_s, dtype=np.float64),
+        "waypoints": np.ascontiguousarray(traj.knot_poses, dtype=np.float64),
+        "n_waypoints": np.ascontiguousarray(traj.n_knots - 1, dtype=np.int64),
+        "spline": np.array(KIND_NAMES[int(kinds[0])]),
+        "spline_degree": np.array(int(degrees[0]), dtype=np.int64),
+    }
+
+
+def save(path, traj: PiecewisePoly, meta: dict | None = None) -> None:
+    """Write ``traj`` to ``path`` (used verbatim, no suffix added) atomically (temp file + os.replace)."""
+    path = os.fspath(path)
+    arrays: dict[str, np.ndarray] = {"format": np.array(FORMAT_NAME), "version": np.array(FORMAT_VERSION)}
+    if np.all(traj.kind == SAMPLES):
+        t = traj.knot_times_s
+        shared = bool(np.all(traj.n_knots == t.shape[1])) and bool(np.all(t == t[:1]))
+        arrays.update(kind=np.array("samples"), t_s=t[0].copy() if shared else t, poses=traj.knot_poses)
+    elif np.any(traj.kind == SAMPLES):
+        raise ValueError("save: cannot store a set mixing generated and user-made rows; save them separately")
+    else:
+        arrays.update(kind=np.array("waypoints"), **waypoint_arrays(traj))
+    meta = {**traj.meta, **(meta or {})}
+    if meta:
+        arrays["meta_json"] = np.array(json.dumps(meta))
+    with atomic_open(path) as f:
+        np.savez(f, **arrays)  # a file object: savez appends no ".npz"
+
+
+def read_npz(path: str, error: type[Exception]):
+    """Read every array of an .npz file; return `get(key, optional=False)`, which raises `error` naming
+    the file and a missing key (or returns None for a missing optional one). An unreadable or
+    non-.npz file raises `error` too."""
+    try:
+        z = np.load(path, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):  # a plain .npy array
+            raise error(f"{path}: not an .npz archive (it holds a single .npy array)")
+        with z:
+            data = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
+        raise error(f"{path}: not a readable .npz archive (truncated or corrupt?): {exc}") from None
+
+    def get(key: str, optional: bool = False) -> np.ndarray | None:
+        if key not in data:
+            if optional:
+                return None
+            raise error(f"{path}: missing key {key!r} (keys present: {sorted(data)})")
+        return data[key]
+
+    return get
+
+
+def _text(get, path: str, key: str, error: type[Exception]) -> str:
+    v = get(key)
+    if v.shape != () or v.dtype.kind != "U":
+        raise error(f"{path}: key {key!r} must be a string")
+    return str(v)
+
+
+def check_version(get, path: str, expected: int, error: type[Exception], regenerate: str) -> None:
+    """Refuse a file of another format version, saying how to make a current one."""
+    version = get("version")
+    if version.shape != () or version.dtype.kind not in "iu":
+        raise error(f"{path}: 'version' must be an integer scalar, got {version.dtype} {version.shape}")
+    if int(version) != expected:
+        hint = (
+            " Version 1 files hold the old interpolating-cubic waypoints with no record of the spline "
+            "construction; they cannot be read as today's approximating B-splines."
+            if int(version) < expected
+            else ""
+        )
+        raise error(f"{path}: unsupported version {int(version)}, expected {expected}.{hint} {regenerate}")
+
+
+def waypoints_from_arrays(get, path: str, error: type[Exception]) -> PiecewisePoly:
+    """Validate and build the "waypoints" layout (waypoint_arrays) read through `get`."""
+    t, p, nw = get("knot_times_s"), get("waypoints"), get("n_waypoints")
+    for key, arr in (("knot_times_s", t), ("waypoints", p)):
+        if arr.dtype.kind != "f":
+            raise error(f"{path}: {key!r} must be float, got {arr.dtype}")
+    if t.ndim != 2 or t.shape[0] < 1 or p.shape != t.shape + (6,):
+        raise error(
+            f"{path}: wrong shape: 'knot_times_s' must be (M, K) and 'waypoints' (M, K, 6), "
+            f"got {t.shape} and {p.shape}"
+        )
+    if nw.dtype.kind not in "iu" or nw.shape != (t.shape[0],):
+        raise error(
+            f"{path}: wrong shape: 'n_waypoints' must be int ({t.shape[0]},), got {nw.dtype} {nw.shape}"
+        )
+    kind = _text(get, path, "spline", error)
+    degree = get("spline_degree")
+    if degree.shape != () or degree.dtype.kind not in "iu":
+        raise error(f"{path}: 'spline_degree' must be an integer scalar, got {degree.dtype} {degree.shape}")
+    try:
+        spec = SplineSpec(kind, int(degree))
+        nk = check_knots(t.astype(np.float64), p.astype(np.float64), path)
+    except ValueError as exc:  # TrajectoryFileError included
+        raise error(f"{path}: {exc}") from None
+    if np.any(nk != nw + 1):
+        raise error(f"{path}: 'n_waypoints' disagrees with the number of knots (NaN padding) in some rows")
+    return PiecewisePoly.from_knots(t, p, nk, spec.code, spec.degree, nw)
+
+
+def load(path) -> PiecewisePoly:
+    """Read and validate a trajectory file; any problem raises TrajectoryFileError naming file and problem."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise TrajectoryFileError(f"{path}: no such trajectory file")
+    get = read_npz(path, TrajectoryFileError)
+    err = TrajectoryFileError
+    if _text(get, path, "format", err) != FORMAT_NAME:
+        raise err(f"{path}: format is {_text(get, path, 'format', err)!r}, expected {FORMAT_NAME!r}")
+    check_version(get, path, FORMAT_VERSION, err,
+                  "Regenerate it with `python -m lasmp.envs.trajectories generate`.")  # fmt: skip
+    kind = _text(get, path, "kind", err)
+    if kind == "waypoints":
+        traj = waypoints_from_arrays(get, path, err)
+    elif kind == "samples":
+        t, p = get("t_s"), get("poses")
+        if t.dtype.kind != "f" or p.dtype.kind != "f":
+            raise err(f"{path}: 't_s' and 'poses' must be float arrays")
+        if t.ndim == 1:
+            if p.ndim != 3 or p.shape[1:] != (t.shape[0], 6):
+                raise err(f"{path}: 'poses' must be (M, K={t.shape[0]}, 6), got {p.shape}")
+            t = np.broadcast_to(t, p.shape[:2])
+        nk = check_knots(np.asarray(t, np.float64), p.astype(np.float64), path)
+        traj = PiecewisePoly.from_knots(t, p, nk, SAMPLES, 3, np.full(len(nk), -1))
+    else:
+        raise err(f"{path}: unknown kind {kind!r}; valid: 'waypoints', 'samples'")
+    if get("meta_json", optional=True) is not None:
+        try:
+            traj.meta = json.loads(_text(get, path, "meta_json", err))
+        except json.JSONDecodeError as exc:
+            raise err(f"{path}: 'meta_json' is not valid JSON ({exc})") from None
+    return traj

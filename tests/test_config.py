@@ -1,0 +1,217 @@
+"""Configuration: every override example of the README composes and validates as written, a typo
+fails naming the key in every subtree, the presets validate, saved configs read back, and the env
+schemas import without the envs."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+import yaml
+from hydra import compose, initialize_config_dir
+from hydra.errors import ConfigCompositionException
+from omegaconf import OmegaConf
+from omegaconf.errors import ConfigKeyError
+
+from lasmp.config import ConfigError
+from lasmp.train import make_runner, to_plain, to_train_cfg
+from lasmp.train_cfg import TASKS, register_configs
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text(encoding="utf-8")
+register_configs()
+
+# `python train.py ARGS` anywhere in the README, in code blocks and inline code; ARGS end at a
+# comment, a closing backtick or a shell operator
+TRAIN_COMMAND = re.compile(r"python train\.py((?:[ \t]+[^\s`#&|;]+)*)")
+# an inline code span made of overrides only, e.g. `env.trajectory.file=PATH`; placeholders such as
+# `domain_rand.split=train|test` or env-relative field names are prose, not command lines
+OVERRIDE = re.compile(
+    r"\+{0,2}(?:(?:env|policy|algo|runner)\.[\w.]+|task|policy|preset|seed|device|torch_threads|resume)"
+    r"=[^\s|<>]+"
+)
+HYDRA_FLAGS_WITH_VALUE = ("--cfg", "-c", "--package", "-p")  # Hydra's own options, not overrides
+
+
+def readme_override_examples() -> list[tuple[str, ...]]:
+    examples: list[tuple[str, ...]] = []
+    for match in TRAIN_COMMAND.finditer(README):
+        args, overrides = match.group(1).split(), []
+        while args:
+            arg = args.pop(0)
+            if arg in HYDRA_FLAGS_WITH_VALUE:
+                args.pop(0)
+            elif not arg.startswith("-"):
+                overrides.append(arg)
+        examples.append(tuple(overrides))
+    for span in re.findall(r"`([^`\n]+)`", README):
+        tokens = span.split()
+        if tokens and all(OVERRIDE.fullmatch(token) for token in tokens):
+            examples.append(tuple(tokens))
+    return list(dict.fromkeys(examples))  # unique, in README order
+
+
+README_EXAMPLES = readme_override_examples()
+
+
+def compose_cfg(overrides):
+    with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
+        return compose("config", overrides=list(overrides))
+
+
+def test_the_readme_has_override_examples_in_the_plain_form():
+    assert len(README_EXAMPLES) >= 10, README_EXAMPLES  # the regexes still find the README's commands
+    env_keys = {token.split("=")[0] for example in README_EXAMPLES for token in example}
+    assert {"env.num_envs", "env.trajectory.file", "env.rewards.h_des_from", "preset"} <= env_keys
+    # env keys are typed structured configs: `+env.key=value` is not needed (and fails for a set key)
+    assert "+env." not in README
+
+
+@pytest.mark.parametrize("overrides", README_EXAMPLES, ids=" ".join)
+def test_every_readme_override_example_composes_and_validates(overrides):
+    cfg = to_train_cfg(compose_cfg(overrides))  # validates, device=cuda included (no GPU needed)
+    plain = to_plain(cfg)
+    for override in overrides:
+        key, value = override.lstrip("+").split("=", 1)
+        if key == "preset":
+            continue
+        got = cfg.policy.name if key == "policy" else OmegaConf.select(OmegaConf.create(plain), key)
+        assert got == yaml.safe_load(value), override  # the value reached the validated config
+
+
+@pytest.mark.parametrize(
+    "overrides, key",
+    [
+        (["env.trajectory.fiel=x"], "env.trajectory.fiel"),
+        (["env.platform.mass=3"], "env.platform.mass"),
+        (["env.num_env=8"], "env.num_env"),
+        (["env.rewards.weights.task1_centre=1.0"], "env.rewards.weights.task1_centre"),
+        (["task=rough_static", "env.terrain.roughnes_m=0.02"], "env.terrain.roughnes_m"),
+        (["task=rough_static", "env.trajectory.file=x"], "env.trajectory"),  # R-S has no trajectory
+        (["policy.use_aligment=false"], "policy.use_aligment"),
+        (["algo.learning_rat=0.1"], "algo.learning_rat"),
+        (["runner.max_iteration=3"], "runner.max_iteration"),
+        (["seeed=1"], "seeed"),
+    ],
+)
+def test_a_typo_fails_at_composition_naming_the_key(overrides, key):
+    with pytest.raises(ConfigCompositionException, match=re.escape(key)):
+        compose_cfg(overrides)
+
+
+@pytest.mark.parametrize(
+    "overrides, key",
+    [
+        (["+env.trajectory.fiel=x"], "env.trajectory.fiel"),
+        (["+env.platfrom.mass_kg=3"], "env.platfrom"),
+        (["task=rough_static", "+env.pushes.max_mp=1"], "env.pushes.max_mp"),
+        (["+policy.use_aligment=false"], "policy.use_aligment"),
+        (["+algo.learning_rat=0.1"], "algo.learning_rat"),
+        (["+runner.max_iteration=3"], "runner.max_iteration"),
+        (["+seeed=1"], "seeed"),
+    ],
+)
+def test_an_appended_typo_fails_validation_naming_the_key(overrides, key):
+    cfg = compose_cfg(overrides)  # Hydra appends a `+key` it does not know
+    with pytest.raises(ConfigError, match=re.escape(f"'{key}'")):
+        to_train_cfg(cfg)
+
+
+@pytest.mark.parametrize(
+    "conf, key",
+    [
+        ({"env": {"trajectory": {"fiel": "x"}}}, "fiel"),
+        ({"task": "rough_static", "env": {"commands": {"resample": 1.0}}}, "resample"),
+        ({"policy": {"latent_dims": 8}}, "latent_dims"),
+        ({"algo": {"gama": 0.9}}, "gama"),
+        ({"runner": {"log": "x"}}, "log"),
+        ({"sed": 1}, "sed"),
+    ],
+)
+def test_a_typo_in_a_saved_config_fails_naming_the_key(conf, key):
+    """A checkpoint's config is a plain dict: it is checked against the same schemas."""
+    with pytest.raises((ConfigError, ConfigKeyError), match=rf"\b{key}\b"):
+        to_train_cfg(OmegaConf.create(conf))
+
+
+@pytest.mark.parametrize(
+    "task, one_valid_term", [("moving_platform", "task1_center"), ("rough_static", "stand_still")]
+)
+def test_an_unknown_reward_term_is_refused_listing_the_tasks_terms(task, one_valid_term):
+    cfg = compose_cfg([f"task={task}", "+env.rewards.weights.task1_centre=1.0"])
+    with pytest.raises(
+        ConfigError, match=r"env\.rewards\.weights: unknown reward term\(s\) \['task1_centre'\]"
+    ) as err:
+        to_train_cfg(cfg)
+    assert one_valid_term in str(err.value)
+
+
+@pytest.mark.parametrize("task", TASKS)
+@pytest.mark.parametrize("preset", sorted(p.stem for p in (ROOT / "cfg" / "preset").glob("*.yaml")))
+def test_every_preset_validates_for_every_task(preset, task):
+    cfg = to_train_cfg(compose_cfg([f"preset={preset}", f"task={task}"]))
+    assert cfg.task == task and type(cfg.env).__name__ == {"moving_platform": "MovingPlatformCfg",
+                                                           "rough_static": "RoughStaticCfg"}[task]  # fmt: skip
+
+
+def test_the_paper_preset_validates_and_only_the_runner_needs_a_gpu():
+    cfg = to_train_cfg(compose_cfg(["preset=paper"]))
+    assert (cfg.device, cfg.env.num_envs, cfg.runner.max_iterations) == ("cuda", 8192, 4000)
+    if not torch.cuda.is_available():  # refused where the learner would start, before building the env
+        with pytest.raises(ConfigError, match="no CUDA device"):
+            make_runner(cfg, None)
+
+
+def test_the_env_option_must_be_the_tasks():
+    with pytest.raises(ConfigError, match="task=moving_platform needs a MovingPlatformCfg"):
+        to_train_cfg(compose_cfg(["env=rough_static"]))
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_a_saved_config_reads_back_to_the_same_train_cfg(task):
+    cfg = to_train_cfg(compose_cfg([f"task={task}", "seed=4", "env.sim.num_threads=1"]))
+    saved = to_plain(cfg)  # what config.yaml and every checkpoint hold
+    again = to_train_cfg(OmegaConf.create(json.loads(json.dumps(saved))))
+    assert again == cfg and to_plain(again) == saved
+    # the saved layout, as checkpoints written before the env schemas moved hold it
+    assert list(saved) == [
+        "task",
+        "seed",
+        "device",
+        "torch_threads",
+        "resume",
+        "env",
+        "policy",
+        "algo",
+        "runner",
+    ]
+    common = ["num_envs", "seed", "sim", "control", "observations"]
+    assert list(saved["env"]) == common + {
+        "moving_platform": ["init_state", "domain_rand", "platform", "trajectory", "curriculum", "rewards",
+                            "termination"],
+        "rough_static": ["episode_length_s", "terrain", "commands", "pushes", "init_state", "domain_rand",
+                         "rewards", "termination"],
+    }[task]  # fmt: skip
+
+
+def test_the_env_schemas_import_without_the_envs():
+    """lasmp.config imports no task; a task's cfg module imports none of the modules that import it
+    (env, scene, terrain), so there is no import cycle to trip over."""
+    code = (
+        "import json, sys\n"
+        "import lasmp.config\n"
+        "before = sorted(m for m in sys.modules if m.startswith('lasmp.envs'))\n"
+        "import lasmp.envs.moving_platform.cfg, lasmp.envs.rough_static.cfg\n"
+        "print(json.dumps([before, sorted(m for m in sys.modules if m.startswith('lasmp.'))]))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT,
+                         timeout=120)  # fmt: skip
+    before, after = json.loads(out.stdout)
+    assert before == []
+    assert "lasmp.envs.moving_platform.cfg" in after and "lasmp.envs.rough_static.cfg" in after
+    assert [m for m in after if m.rsplit(".", 1)[-1] in ("env", "scene", "terrain")] == []

@@ -1,0 +1,205 @@
+"""Reliability of the learner: GAE by hand, the divergence guard, saves that cannot be half-written,
+random states in checkpoints, and Ctrl-C / SIGTERM during the real train.py."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from omegaconf import OmegaConf
+
+from lasmp.algo.checkpoint import atomic_torch_save, read_checkpoint
+from lasmp.train import make_runner, to_train_cfg, train
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def tiny(tmp_path, **over):
+    cfg = {
+        "env": {"num_envs": 4},
+        "runner": {"max_iterations": 2, "log_dir": str(tmp_path), "save_interval": 1, "num_steps_per_env": 5},
+        "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
+        "algo": {"num_mini_batches": 2, "num_learning_epochs": 1},
+        "torch_threads": 1,
+    }
+    return to_train_cfg(OmegaConf.merge(OmegaConf.create(cfg), OmegaConf.create(over)))
+
+
+def test_gae_matches_a_computation_by_hand_with_terminations_and_time_outs(tmp_path):
+    runner = make_runner(tiny(tmp_path), None)
+    alg, env = runner.alg, runner.env
+    gamma, lam = alg.gamma, alg.lam
+    steps = runner.cfg["num_steps_per_env"]
+    rewards = torch.tensor([[0.5, -1.0, 2.0, 0.1], [1.0, 0.0, -0.5, 0.3], [0.2, 0.7, 0.0, -0.2],
+                            [-0.3, 0.4, 1.5, 0.9], [0.6, -0.8, 0.2, 0.05]])  # fmt: skip
+    # env 0 terminates at step 1, env 1 times out at step 2, env 2 both (different steps), env 3 runs on
+    dones = torch.tensor([[0, 0, 0, 0], [1, 0, 1, 0], [0, 1, 0, 0], [0, 0, 0, 0], [0, 0, 1, 0]])
+    time_outs = torch.tensor([[0, 0, 0, 0], [0, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0], [0, 0, 1, 0]])
+    assert rewards.shape[0] == steps
+    obs = env.get_observations()
+    values = []
+    with torch.inference_mode():
+        for t in range(steps):
+            alg.act(obs)
+            values.append(alg.transition.values.squeeze(-1).clone())
+            obs = env.step(torch.zeros(4, 12))[0]  # new states, so V changes along the rollout
+            alg.process_env_step(obs, rewards[t], dones[t], {"time_outs": time_outs[t]})
+        last_value = alg.critic(obs).squeeze(-1).clone()
+        alg.compute_returns(obs)
+    v = torch.stack(values).double()
+    assert v.std() > 0  # otherwise the check proves little
+    # by hand: a time-out is a truncation, bootstrapped with gamma V(s_t) (rsl_rl's reading); both end GAE
+    r = rewards.double() + gamma * v * time_outs.double()
+    expected_returns = torch.zeros(steps, 4, dtype=torch.float64)
+    adv = torch.zeros(4, dtype=torch.float64)
+    for t in reversed(range(steps)):
+        next_v = last_value.double() if t == steps - 1 else v[t + 1]
+        alive = 1.0 - dones[t].double()
+        delta = r[t] + gamma * alive * next_v - v[t]
+        adv = delta + gamma * lam * alive * adv
+        expected_returns[t] = adv + v[t]
+    got = alg.storage.returns.squeeze(-1).double()
+    torch.testing.assert_close(got, expected_returns, rtol=1e-5, atol=1e-5)
+    a = expected_returns - v
+    if not alg.normalize_advantage_per_mini_batch:
+        a = (a - a.mean()) / (a.std() + 1e-8)
+    torch.testing.assert_close(alg.storage.advantages.squeeze(-1).double(), a, rtol=1e-4, atol=1e-4)
+
+
+def test_non_finite_loss_raises_naming_it_and_saves_nothing(tmp_path):
+    runner = make_runner(tiny(tmp_path), str(tmp_path))
+    real = runner._update
+
+    def diverged():
+        losses = real()
+        losses["value"] = float("nan")
+        return losses
+
+    runner._update = diverged
+    with pytest.raises(FloatingPointError, match=r"non-finite loss .*'value': nan"):
+        runner.learn(2)
+    assert [p.name for p in tmp_path.glob("model_*.pt")] == []
+
+
+def test_non_finite_parameter_raises_and_never_overwrites_a_good_checkpoint(tmp_path):
+    runner = make_runner(tiny(tmp_path), str(tmp_path))
+    good = tmp_path / "model_0.pt"
+    runner.save(str(good))
+    before = good.read_bytes()
+    real = runner._update
+
+    def poisoned():
+        losses = real()
+        with torch.no_grad():
+            next(runner.alg.get_policy().parameters()).view(-1)[0] = float("inf")
+        return losses
+
+    runner._update = poisoned
+    with pytest.raises(FloatingPointError, match="non-finite values in actor_state_dict"):
+        runner.learn(2)
+    with pytest.raises(FloatingPointError, match="refusing to save"):
+        runner.save(str(good))
+    assert good.read_bytes() == before
+    assert read_checkpoint(good)["iter"] == 0
+    assert sorted(p.name for p in tmp_path.iterdir() if p.is_file() and "tfevents" not in p.name) == ["model_0.pt"]
+
+
+def test_a_save_killed_mid_write_leaves_the_previous_checkpoint_intact(tmp_path):
+    train(tiny(tmp_path, runner={"max_iterations": 1}))
+    target = tmp_path / "model_0.pt"
+    before = target.read_bytes()
+    # a subprocess starts overwriting model_0.pt through the atomic writer and is killed mid-write
+    script = textwrap.dedent(f"""
+        import sys, time, torch
+        from lasmp.algo.checkpoint import atomic_torch_save
+        def slow(obj, f):
+            f.write(b"PK\\x03\\x04 partial checkpoint bytes" * 1000)
+            f.flush()
+            print("writing", flush=True)
+            time.sleep(60)
+        torch.save = slow
+        atomic_torch_save({{"x": 1}}, {str(target)!r})
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        assert proc.stdout.readline().strip() == "writing"
+        partial = [p for p in tmp_path.iterdir() if p.name.startswith(".model_0.pt.")]
+        assert len(partial) == 1 and partial[0].stat().st_size > 0  # the write was really under way
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert target.read_bytes() == before
+    assert read_checkpoint(target)["iter"] == 0  # still loadable
+
+
+def test_checkpoints_carry_random_states_and_a_resume_continues_the_streams(tmp_path):
+    runner = make_runner(tiny(tmp_path), None)
+    runner.env.rng.random(7)  # move the env's numpy stream away from its seed
+    torch.rand(3)
+    runner.save(str(tmp_path / "model_3.pt"))
+    next_torch, next_numpy = torch.rand(4), runner.env.rng.random(4)
+    data = read_checkpoint(tmp_path / "model_3.pt")
+    assert {"torch", "numpy_env"} <= set(data["rng_state"])
+
+    resumed = make_runner(tiny(tmp_path / "b"), None)
+    torch.rand(10)  # whatever happened before the load does not matter
+    resumed.load(str(tmp_path / "model_3.pt"))
+    assert torch.equal(torch.rand(4), next_torch)
+    np.testing.assert_array_equal(resumed.env.rng.random(4), next_numpy)
+
+
+def test_a_checkpoint_without_random_states_still_loads(tmp_path):
+    runner = make_runner(tiny(tmp_path), None)
+    runner.save(str(tmp_path / "model_1.pt"))
+    data = read_checkpoint(tmp_path / "model_1.pt")
+    del data["rng_state"], data["path"]
+    atomic_torch_save(data, tmp_path / "model_2.pt")  # as written before random states were saved
+    make_runner(tiny(tmp_path / "b"), None).load(str(tmp_path / "model_2.pt"))
+
+
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_signal_during_train_py_saves_the_current_iteration_and_prints_the_resume_command(tmp_path, signum, code):
+    run = tmp_path / "run"
+    args = ["env.num_envs=4", "torch_threads=1", "policy.actor_hidden_dims=[32,32,32]", "runner.max_iterations=500",
+            "runner.save_interval=1000", f"runner.log_dir={run}"]  # fmt: skip
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen([sys.executable, str(ROOT / "train.py"), *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, cwd=tmp_path, env=env)  # fmt: skip
+    try:
+        iterations = 0
+        deadline = time.monotonic() + 300
+        while iterations < 3 and time.monotonic() < deadline:  # let a few iterations pass
+            line = proc.stdout.readline()
+            assert line, proc.stderr.read()[-2000:]
+            iterations += line.startswith("it ")
+        proc.send_signal(signum)
+        out, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == code, err[-2000:]
+    saved = sorted(run.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
+    assert len(saved) == 2 and saved[0].name == "model_0.pt"  # model_0 (save interval) + the interrupted one
+    stopped_at = int(saved[-1].stem.split("_")[1])
+    assert stopped_at >= 2 and read_checkpoint(saved[-1])["iter"] == stopped_at
+    command = out.split("resume with:")[1].strip().splitlines()[0]
+    assert command.startswith("python train.py ") and f"resume={saved[-1]}" in command
+    assert f"runner.log_dir={run}" in command and "env.num_envs=4" in command
+
+    resume = command.split()[2:]
+    resume = [a if not a.startswith("runner.max_iterations=") else "runner.max_iterations=1" for a in resume]
+    again = subprocess.run([sys.executable, str(ROOT / "train.py"), *resume], capture_output=True, text=True,
+                           cwd=tmp_path, env=env, timeout=300)  # fmt: skip
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert f"at iteration {stopped_at + 1}" in again.stdout
+    assert read_checkpoint(run)["iter"] == stopped_at + 1

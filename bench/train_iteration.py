@@ -76,6 +76,8 @@ def main(argv=None) -> dict:
         "update_ppo_s": round((totals["update_ppo_and_roa"] - totals["update_roa"]) / n, 3),
         "update_roa_s": round(totals["update_roa"] / n, 3),
         "policy_steps_per_s": round(steps / wall, 1),
+        # the learner's share against physics (the lean-and-sound issue's target: <= 1.5)
+        "learner_over_physics": round(totals["update_ppo_and_roa"] / totals["physics"], 3),
     }
     if args.json:
         print(json.dumps(result))

@@ -46,10 +46,12 @@ from lasmp.render.viewer import Viewer, has_display
 from lasmp.train import make_env, seed_everything
 from lasmp.train_cfg import rsl_rl_cfg
 
-
 # ---------------------------------------------------------------------------------------------
 # Loading
 # ---------------------------------------------------------------------------------------------
+DEPLOY_LOAD = {"actor": True, "critic": True, "optimizer": False, "iteration": True}  # no optimizer needed
+
+
 def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None,
                        env_overrides: dict | None = None):  # fmt: skip
     """(env, policy, cfg): the checkpoint's env and its actor in deployment mode (eval, estimators only).
@@ -65,7 +67,7 @@ def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str
     with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl prints the networks
         runner = LasmpRunner(env, rsl_rl_cfg(cfg), log_dir=None, device="cpu")
     try:
-        runner.load(data["path"])
+        runner.load(data["path"], load_cfg=DEPLOY_LOAD)
     except CheckpointError:
         raise
     except RuntimeError as err:  # state-dict shape mismatch: the config does not fit the weights

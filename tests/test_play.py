@@ -209,6 +209,32 @@ def test_scenario_plays_the_real_motion_on_the_close_drive(run_dir, capsys, monk
         main(["--checkpoint", str(run_dir), "--scenario", "lift_up", "--trajectories", "x.npz"])
 
 
+def test_policy_checkpoint_is_small_plays_the_same_and_refuses_to_resume(run_dir, tmp_path):
+    from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint, read_checkpoint
+    from lasmp.algo.checkpoint import main as ckpt_main
+    from lasmp.play import load_deploy_policy
+    from lasmp.train import make_runner, to_train_cfg
+
+    full = latest_checkpoint(run_dir)
+    slim = tmp_path / "policy.pt"
+    assert ckpt_main(["policy", str(run_dir), str(slim)]) == 0
+    data = read_checkpoint(slim)
+    assert data["kind"] == "policy" and "optimizer_state_dict" not in data
+    assert "estimator_optimizer_state_dict" not in data and slim.stat().st_size < 0.6 * full.stat().st_size
+    env_a, pol_a, _ = load_deploy_policy(full, num_envs=2, seed=1)
+    env_b, pol_b, _ = load_deploy_policy(slim, num_envs=2, seed=1)
+    with torch.inference_mode():
+        for _ in range(5):
+            act_a, act_b = pol_a(env_a.get_observations()), pol_b(env_b.get_observations())
+            assert torch.equal(act_a, act_b)
+            env_a.step(act_a)
+            env_b.step(act_b)
+    runner = make_runner(to_train_cfg(OmegaConf.create(data["config"])), None)
+    with pytest.raises(CheckpointError, match="policy checkpoint .*to resume training"):
+        runner.load(str(slim))
+    assert ckpt_main(["policy", str(tmp_path / "nope"), str(tmp_path / "x.pt")]) == 2
+
+
 # ---------------------------------------------------------------------------------------------
 # The visual-only render world
 # ---------------------------------------------------------------------------------------------

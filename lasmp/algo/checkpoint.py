@@ -7,6 +7,8 @@ A checkpoint (format "lasmp-checkpoint-v1") is a dict saved with `torch.save`:
 - `env_state`: the env's own state (curriculum level and window);
 - `rng_state`: torch's and the env's numpy random states at the save, so that a resume continues
   the random streams instead of replaying them from the seed (optional: older checkpoints lack it).
+A *policy checkpoint* (`policy_checkpoint`, `kind` = "policy") is the same file without the
+optimizers' states: a few MB that play.py and evaluate.py load, and train.py refuses to resume.
 It is written to a temporary file in the same directory and renamed over the target
 (`atomic_torch_save`), so an interrupted save never leaves a truncated checkpoint behind.
 """
@@ -72,6 +74,25 @@ def read_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
 def atomic_torch_save(obj, path: str | Path) -> None:
     with atomic_open(path) as f:
         torch.save(obj, f)
+
+
+OPTIMIZER_KEYS = ("optimizer_state_dict", "estimator_optimizer_state_dict", "rnd_optimizer_state_dict")
+
+
+def is_policy_only(data: dict) -> bool:
+    """True for a policy checkpoint: networks without optimizer states (cannot resume training)."""
+    return data.get("kind") == "policy" or "optimizer_state_dict" not in data
+
+
+def policy_checkpoint(src: str | Path, dst: str | Path) -> Path:
+    """Write the policy checkpoint of `src` (a checkpoint or run directory) to `dst`: everything but
+    the optimizers' states (networks with their normalizers, config, layout, env state)."""
+    data = read_checkpoint(src)
+    slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
+    slim.update(kind="policy", source=f"{Path(data['path']).name} (iteration {data['iter']})")
+    check_finite(slim, f"refusing to write {dst}")
+    atomic_torch_save(slim, dst)
+    return Path(dst)
 
 
 def check_compatible(data: dict, env) -> None:
@@ -146,3 +167,37 @@ def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | Non
         raise CheckpointError(
             f"checkpoint {data['path']} has a config this code cannot rebuild: {err}"
         ) from err
+
+
+def main(argv=None) -> int:
+    """`python -m lasmp.algo.checkpoint policy SRC DST`: write the policy checkpoint of SRC to DST;
+    `python -m lasmp.algo.checkpoint info PATH`: what a checkpoint holds."""
+    import argparse
+    import sys
+
+    p = argparse.ArgumentParser(prog="python -m lasmp.algo.checkpoint", description=main.__doc__)
+    sub = p.add_subparsers(dest="cmd", required=True)
+    pol = sub.add_parser("policy", help="strip the optimizer states (a few MB to ship or share)")
+    pol.add_argument("src", help="a checkpoint file or run directory (its latest)")
+    pol.add_argument("dst")
+    inf = sub.add_parser("info", help="iteration, task, policy, size and kind of a checkpoint")
+    inf.add_argument("path")
+    args = p.parse_args(argv)
+    try:
+        if args.cmd == "policy":
+            out = policy_checkpoint(args.src, args.dst)
+            print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
+        else:
+            data = read_checkpoint(args.path)
+            cfg = data["config"]
+            print(f"{data['path']}: iteration {data['iter']}, task {cfg.get('task')}, policy "
+                  f"{cfg.get('policy', {}).get('name')}, {'policy checkpoint' if is_policy_only(data) else 'full'}, "
+                  f"curriculum {data.get('env_state', {}).get('curriculum')}")  # fmt: skip
+    except (CheckpointError, FloatingPointError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -22,9 +22,11 @@ from rsl_rl.utils.logger import Logger
 
 from lasmp.algo.checkpoint import (
     CHECKPOINT_FORMAT,
+    CheckpointError,
     atomic_torch_save,
     check_compatible,
     check_finite,
+    is_policy_only,
     obs_layout,
     read_checkpoint,
     rng_state,
@@ -180,6 +182,11 @@ class LasmpRunner(OnPolicyRunner):
     ):
         data = read_checkpoint(path, map_location or self.device)
         check_compatible(data, self.env)
+        if is_policy_only(data) and (load_cfg is None or load_cfg.get("optimizer", True)):
+            raise CheckpointError(
+                f"{data['path']} is a policy checkpoint (no optimizer states): play or evaluate it; to resume "
+                "training, give the run's own model_<N>.pt"
+            )
         self.alg.load(data, load_cfg, strict)
         if load_cfg is None or load_cfg.get("iteration", True):
             self.current_learning_iteration = int(data["iter"]) + 1  # the saved iteration is complete

@@ -70,6 +70,13 @@ class AlgoCfg:
     roa_lambda: float = 0.2  # λ of L_imp, SPEC §9
     estimator_learning_rate: float = 1e-3  # (ours) the estimators' own Adam
     estimator_epochs: int = 1  # (ours) ROA passes over each rollout
+    # (ours, SPEC §9 leaves it open) close the train/deploy gap: from iteration estimate_rollout_start
+    # on, every estimate_rollout_every-th iteration's rollout *and* PPO update act on the estimators'
+    # outputs (detached) instead of the privileged inputs; 0 = never (the paper's literal reading).
+    # Why: a policy that only ever saw true velocities walks off a still platform in deployment
+    # (README "Results", the deployment gap)
+    estimate_rollout_every: int = 2
+    estimate_rollout_start: int = 100
 
 
 @dataclass
@@ -135,6 +142,11 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
     for name in ("num_learning_epochs", "num_mini_batches", "estimator_epochs"):
         if getattr(a, name) < 1:
             raise ConfigError(f"algo.{name} must be >= 1, got {getattr(a, name)}")
+    if a.estimate_rollout_every < 0 or a.estimate_rollout_start < 0:
+        raise ConfigError(
+            f"algo.estimate_rollout_every and algo.estimate_rollout_start must be >= 0, got "
+            f"{a.estimate_rollout_every}, {a.estimate_rollout_start}"
+        )
     if r.num_steps_per_env < 1 or r.max_iterations < 0 or r.save_interval < 1:
         raise ConfigError(
             "runner.num_steps_per_env and runner.save_interval must be >= 1, max_iterations >= 0"

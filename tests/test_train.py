@@ -78,6 +78,43 @@ def test_ppo_update_leaves_estimators_alone_and_roa_moves_them(tmp_path):
     assert not changed(before, actor, "mlp")  # the backbone is PPO's alone
 
 
+def test_iterations_on_the_estimates_follow_the_schedule_and_keep_ppo_off_the_estimators(tmp_path):
+    runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 3, "estimate_rollout_start": 10}), None)
+    alg, actor = runner.alg, runner.alg.get_policy()
+    assert [it for it in range(8, 20) if alg.rollout_on_estimates(it)] == [10, 13, 16, 19]
+    assert alg.rollout_on_estimates(13) and actor.act_on_estimates
+    obs = runner.env.get_observations()
+    with torch.inference_mode():
+        on_estimates = actor.get_latent(obs).clone()
+        actor.act_on_estimates, actor.deploy = False, True
+        deployed = actor.get_latent(obs).clone()
+        actor.deploy = False
+        privileged = actor.get_latent(obs).clone()
+    assert torch.equal(on_estimates, deployed) and not torch.equal(on_estimates, privileged)
+    alg.rollout_on_estimates(13)
+    rollout(runner)
+    before = params(actor)
+    alg.update_roa = lambda: {}  # PPO's own update only, on the estimates
+    losses = alg.update()
+    assert losses["Policy/acts_on_estimates"] == 1.0
+    assert not changed(before, actor, "explicit_estimator") and not changed(before, actor, "implicit_estimator")
+    assert changed(before, actor, "mlp")
+
+
+def test_the_runner_sets_each_iterations_mode(tmp_path):
+    runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 2, "estimate_rollout_start": 1}), None)
+    modes = []
+    real = runner.alg.update
+
+    def spy():
+        modes.append(runner.alg.get_policy().act_on_estimates)
+        return real()
+
+    runner.alg.update = spy
+    runner.learn(4)
+    assert modes == [False, True, False, True]  # iterations 0..3: on at 1 and 3
+
+
 def test_time_outs_are_bootstrapped_and_terminations_are_not(tmp_path):
     runner = make_runner(tiny(tmp_path), None)
     alg = runner.alg

@@ -11,7 +11,10 @@ with the adaptation losses of `LasmpActor.roa_losses`:
 Our choices (SPEC leaves them open): the estimators have their own Adam optimizer
 (`estimator_learning_rate`); the encoder's regularization term (the second of L_imp) steps the
 encoder through PPO's optimizer, in a step of its own in which no other parameter has a
-gradient; lambda is constant (no ramp); rollouts always act with privileged inputs.
+gradient; lambda is constant (no ramp). Rollouts act with privileged inputs, except that from
+iteration `estimate_rollout_start` on, every `estimate_rollout_every`-th iteration (rollout and
+PPO update alike) acts on the estimators' detached outputs, as at deployment: the policy then
+learns to live with estimation errors (`rollout_on_estimates`, called by the runner).
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ class PPOROA(PPO):
         roa_lambda: float = 0.2,
         estimator_learning_rate: float = 1e-3,
         estimator_epochs: int = 1,
+        estimate_rollout_every: int = 0,
+        estimate_rollout_start: int = 0,
         **kwargs,
     ) -> None:
         super().__init__(actor, critic, storage, **kwargs)
@@ -39,12 +44,23 @@ class PPOROA(PPO):
             raise ValueError(f"algorithm.estimator_epochs must be >= 1, got {estimator_epochs}")
         self.roa_lambda = roa_lambda
         self.estimator_epochs = estimator_epochs
+        self.estimate_rollout_every = estimate_rollout_every
+        self.estimate_rollout_start = estimate_rollout_start
         self._estimator_params = list(actor.estimator_parameters())
         self.estimator_optimizer = torch.optim.Adam(self._estimator_params, lr=estimator_learning_rate)
 
+    def rollout_on_estimates(self, iteration: int) -> bool:
+        """Set whether iteration `iteration` (its rollout and PPO update) acts on the estimates."""
+        every, start = self.estimate_rollout_every, self.estimate_rollout_start
+        on = every > 0 and iteration >= start and (iteration - start) % every == 0
+        self.actor.act_on_estimates = on
+        return on
+
     def update(self) -> dict[str, float]:
+        on_estimates = float(self.actor.act_on_estimates)
         loss_dict = super().update()
         loss_dict.update(self.update_roa())
+        loss_dict["Policy/acts_on_estimates"] = on_estimates
         return loss_dict
 
     def update_roa(self) -> dict[str, float]:

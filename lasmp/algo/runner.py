@@ -138,7 +138,12 @@ class LasmpRunner(OnPolicyRunner):
         print(f"\n{signal.Signals(signum).name}: finishing this iteration, then saving a checkpoint "
               "(send it again to abort at once)", flush=True)  # fmt: skip
 
+    def _set_rollout_mode(self, iteration: int) -> None:
+        if hasattr(self.alg, "rollout_on_estimates"):
+            self.alg.rollout_on_estimates(iteration)
+
     def _after_iteration(self, it: int) -> None:
+        self._set_rollout_mode(it + 1)  # the next iteration's rollout and update
         if self._signal is None:
             return
         path = None
@@ -155,6 +160,7 @@ class LasmpRunner(OnPolicyRunner):
         if threading.current_thread() is threading.main_thread():
             previous = {s: signal.signal(s, self._on_signal) for s in INTERRUPT_SIGNALS}
         self._signal = None
+        self._set_rollout_mode(self.current_learning_iteration)
         try:
             super().learn(num_learning_iterations, init_at_random_ep_len)
         finally:

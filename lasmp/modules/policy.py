@@ -80,6 +80,9 @@ class LasmpActor(MLPModel):
             obs, obs_groups, obs_set, output_dim, hidden_dims, activation, obs_normalization, distribution_cfg
         )
         self.deploy: bool = False
+        # training on the estimates (PPOROA.rollout_on_estimates): the estimated inputs, detached
+        # so that PPO's gradients never reach the estimators
+        self.act_on_estimates: bool = False
         self.encoder = ImplicitEncoder(self.num_implicit, latent_dim, encoder_hidden_dims, activation)
         est_kw = dict(
             obs_dim=self.num_obs,
@@ -167,11 +170,14 @@ class LasmpActor(MLPModel):
     def get_latent(
         self, obs: TensorDict, masks: torch.Tensor | None = None, hidden_state=None
     ) -> torch.Tensor:
-        """Backbone input [norm(o, x_exp, u_aln), l_imp(, norm(o^H) flattened)], per `self.deploy`."""
+        """Backbone input [norm(o, x_exp, u_aln), l_imp(, norm(o^H) flattened)], per `self.deploy`
+        (or `self.act_on_estimates`: the estimates, detached)."""
         o = obs[GROUP_OBS]
         history_n = self.normalize_history(obs[GROUP_HISTORY])
         if self.deploy:
             x_exp, l_imp, u_aln = self._estimated_inputs(o, history_n)
+        elif self.act_on_estimates:
+            x_exp, l_imp, u_aln = (None if t is None else t.detach() for t in self._estimated_inputs(o, history_n))
         else:
             x_exp, l_imp, u_aln = self._privileged_inputs(obs)
         parts = [self.obs_normalizer(self._normalized_part(o, x_exp, u_aln, obs)), l_imp]

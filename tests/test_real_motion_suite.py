@@ -106,6 +106,14 @@ def test_evaluate_suite_end_to_end(tmp_path, small_bench, capsys):
         assert result["reference_motion"][name]["acc_max_mps2"] > 0.0
     md = (out / "metrics.md").read_text()
     assert "| lift_up |" in md and "| bus_emergency_brake |" in md and "How the platform followed" in md
+    capsys.readouterr()
+    assert suite_main(["table", str(out), str(out), "--labels", "A", "B"]) == 0
+    table = capsys.readouterr().out
+    lift = result["scenarios"]["lift_up"]["metrics"]
+    expected = f"{lift['collision_rate']['mean']:.2f} / {lift['position_deviation_m']['mean']:.3f}"
+    assert "| scenario | A | B |" in table and f"| lift_up | {expected} | {expected} |" in table
+    assert suite_main(["table", str(out), "--labels", "A", "B"]) == 2
+    assert "2 labels for 1 results" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

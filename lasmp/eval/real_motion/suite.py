@@ -252,3 +252,29 @@ def platform_tracking(episodes: SuiteEpisodes, env_overrides_: dict) -> dict[str
         }
     env.episode_source = None
     return out
+
+
+def comparison_table(result_dirs: list, labels: list[str] | None = None) -> str:
+    """Markdown: scenarios x controllers, each cell "collision rate / position deviation (m)", from
+    the `metrics.json` of suite results (all of the same scenarios)."""
+    import json
+    from pathlib import Path
+
+    results = [json.loads((Path(d) / "metrics.json").read_text()) for d in result_dirs]
+    labels = labels or [Path(d).name for d in result_dirs]
+    if len(labels) != len(results):
+        raise ValueError(f"{len(labels)} labels for {len(results)} results")
+    for r, d in zip(results, result_dirs, strict=True):
+        if r.get("suite") != SUITE_NAME:
+            raise ValueError(f"{d}: not a real-motion suite result")
+    names = list(results[0]["scenarios"])
+    if any(list(r["scenarios"]) != names for r in results):
+        raise ValueError("the results cover different scenarios")
+
+    def cell(m: dict) -> str:
+        return f"{m['collision_rate']['mean']:.2f} / {m['position_deviation_m']['mean']:.3f}"
+
+    lines = ["| scenario | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
+    lines += [f"| {n} | " + " | ".join(cell(r["scenarios"][n]["metrics"]) for r in results) + " |" for n in names]
+    lines.append("| **all** | " + " | ".join(cell(r["overall"]) for r in results) + " |")
+    return "\n".join(lines)

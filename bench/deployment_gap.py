@@ -1,0 +1,97 @@
+"""Where a LAS-MP policy's deployment gap comes from: collisions on a still platform per input source.
+
+The policy plays 20 s on a platform that does not move (the real-motion suite's close drive), with
+the checkpoint's own robot randomization, in six input modes: everything estimated (deployment),
+and the estimates with one part replaced by the truth: the explicit estimates x_exp (contacts and
+velocities), the contacts only, the velocities only (body and platform velocities, which also
+rebuild u_aln), the implicit latent l_imp, and x_exp plus l_imp (= the privileged inputs). Prints
+one JSON object: the share of episodes that end in a collision or fall, per mode.
+
+    python bench/deployment_gap.py --checkpoint runs/lasmp_v2_seed0 --num-envs 128
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from lasmp.envs import trajectories as trj
+from lasmp.eval.real_motion import suite as rm
+from lasmp.eval.real_motion.motion import Motion, time_grid, to_trajectories
+from lasmp.modules.obs_groups import GYRO_Z_COL
+from lasmp.modules.policy import alignment_from_estimates
+from lasmp.play import load_deploy_policy
+
+N_CONTACTS = 4  # x_exp = [contacts (4), v_body_b (3), v_plf_b (3), omega_plf_b (3)]
+MODES = {
+    "deployment (all estimated)": "",
+    "true x_exp": "x",
+    "true contacts": "c",
+    "true velocities": "v",
+    "true l_imp": "l",
+    "privileged (true x_exp and l_imp)": "xl",
+}
+
+
+def collision_rate(checkpoint: str, path: str, duration_s: float, n: int, seed: int, truth: str) -> float:
+    env, pol, _ = load_deploy_policy(checkpoint, num_envs=n, seed=seed, trajectories=path,
+                                     env_overrides=rm.env_overrides(duration_s, "close"))  # fmt: skip
+    estimated = pol._estimated_inputs
+    current = {}
+
+    def mixed(o, history_n):
+        x_hat, l_hat, _ = estimated(o, history_n)
+        obs = current["obs"]
+        x_true = obs["priv_explicit"][:, : x_hat.shape[1]]
+        if "x" in truth:
+            x_hat = x_true
+        if "c" in truth:
+            x_hat = torch.cat([x_true[:, :N_CONTACTS], x_hat[:, N_CONTACTS:]], 1)
+        if "v" in truth:
+            x_hat = torch.cat([x_hat[:, :N_CONTACTS], x_true[:, N_CONTACTS:]], 1)
+        if "l" in truth:
+            l_hat = pol.encoder(obs["priv_implicit"])
+        u_hat = alignment_from_estimates(x_hat, o[:, GYRO_Z_COL]) if pol.use_alignment else None
+        return x_hat, l_hat, u_hat
+
+    pol._estimated_inputs = mixed
+    obs = env.get_observations()
+    ended = np.zeros(n, bool)
+    collided = np.zeros(n, bool)
+    with torch.inference_mode():
+        for _ in range(env.max_episode_length):
+            current["obs"] = obs
+            obs, _, done, extras = env.step(pol(obs))
+            done = done.numpy()
+            collided |= done & ~extras["time_outs"].numpy() & ~ended
+            ended |= done
+    return float(collided.mean())
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--checkpoint", required=True)
+    ap.add_argument("--num-envs", type=int, default=128)
+    ap.add_argument("--duration-s", type=float, default=20.0)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    t = time_grid(args.duration_s)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / "still.npz")
+        trj.save(path, to_trajectories([Motion("still", t, np.zeros((len(t), 6)))]))
+        out = {"checkpoint": args.checkpoint, "num_envs": args.num_envs, "duration_s": args.duration_s}
+        out["collision_rate"] = {
+            label: collision_rate(args.checkpoint, path, args.duration_s, args.num_envs, args.seed, truth)
+            for label, truth in MODES.items()
+        }
+    print(json.dumps(out))
+    return out
+
+
+if __name__ == "__main__":
+    main()

@@ -79,6 +79,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--num-envs", type=int, default=128)
     ap.add_argument("--duration-s", type=float, default=20.0)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--modes", nargs="+", choices=list(MODES.values()), default=list(MODES.values()),
+                    help="truth substituted: '' none, x, c, v, l, xl (default: all six)")  # fmt: skip
     args = ap.parse_args(argv)
     t = time_grid(args.duration_s)
     with tempfile.TemporaryDirectory() as tmp:
@@ -88,6 +90,7 @@ def main(argv=None) -> dict:
         out["collision_rate"] = {
             label: collision_rate(args.checkpoint, path, args.duration_s, args.num_envs, args.seed, truth)
             for label, truth in MODES.items()
+            if truth in args.modes
         }
     print(json.dumps(out))
     return out

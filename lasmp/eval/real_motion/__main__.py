@@ -24,7 +24,9 @@ def main(argv=None) -> int:
     st.add_argument("--json", action="store_true")
     for q in (g, pl, st):
         q.add_argument("--scenarios", nargs="+", help=f"default: all of {list(rm.SCENARIOS)}")
-    tb = sub.add_parser("table", help="controllers x scenarios (collision rate / position deviation) from results")
+    tb = sub.add_parser(
+        "table", help="controllers x scenarios (collision rate / position deviation) from results"
+    )
     tb.add_argument("results", nargs="+", type=Path, help="evaluate.py --suite real_motion output dirs")
     tb.add_argument("--labels", nargs="+", help="column labels (default: the directory names)")
     args = p.parse_args(argv)

@@ -135,7 +135,15 @@ import numpy as np
 from scipy.integrate import cumulative_simpson
 from scipy.signal import cont2discrete, lfilter
 
-from lasmp.eval.real_motion.motion import DEFAULT_DT_S, DEFAULT_DURATION_S, Motion, deck_pose, time_grid
+from lasmp.eval.real_motion.motion import (
+    DEFAULT_DT_S,
+    DEFAULT_DURATION_S,
+    Motion,
+    deck_pose,
+    non_negative,
+    positive,
+    time_grid,
+)
 from lasmp.eval.real_motion.profiles import JerkProfile, concatenate, hold, velocity_change
 
 VARIANTS = ("stop_and_go", "emergency_brake")
@@ -181,26 +189,6 @@ class _Turn:
     lateral: JerkProfile  # its acceleration is a_y (left-positive magnitude), its velocity psi * v
     speed_mps: float
     sign: float  # +1 left, -1 right
-
-
-def _positive(where: str, name: str, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: {name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(x) and x > 0):
-        raise ValueError(f"{where}: {name} must be a positive finite number, got {value!r}")
-    return x
-
-
-def _non_negative(where: str, name: str, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: {name} must be a number >= 0, got {value!r}") from None
-    if not (math.isfinite(x) and x >= 0):
-        raise ValueError(f"{where}: {name} must be a finite number >= 0, got {value!r}")
-    return x
 
 
 def bump_profile(x_m, height_m: float, length_m: float, shape: str = "circular") -> np.ndarray:
@@ -295,13 +283,13 @@ def city_bus(
     where = "city_bus"
     if variant not in VARIANTS:
         raise ValueError(f"{where}: unknown variant {variant!r}; valid: {list(VARIANTS)}")
-    v_c = _positive(where, "cruise_speed_mps", cruise_speed_mps)
-    acc = _positive(where, "accel_mps2", accel_mps2)
-    brake = _positive(where, "brake_mps2", brake_mps2)
-    jerk = _positive(where, "jerk_mps3", jerk_mps3)
-    em_decel = _positive(where, "emergency_decel_mps2", emergency_decel_mps2)
-    em_jerk = _positive(where, "emergency_jerk_mps3", emergency_jerk_mps3)
-    a_lat = _positive(where, "a_lat_mps2", a_lat_mps2)
+    v_c = positive(where, "cruise_speed_mps", cruise_speed_mps)
+    acc = positive(where, "accel_mps2", accel_mps2)
+    brake = positive(where, "brake_mps2", brake_mps2)
+    jerk = positive(where, "jerk_mps3", jerk_mps3)
+    em_decel = positive(where, "emergency_decel_mps2", emergency_decel_mps2)
+    em_jerk = positive(where, "emergency_jerk_mps3", emergency_jerk_mps3)
+    a_lat = positive(where, "a_lat_mps2", a_lat_mps2)
     try:
         turn = float(turn_angle_rad)
     except (TypeError, ValueError):
@@ -319,7 +307,7 @@ def city_bus(
         raise ValueError(f"{where}: bump_height_m must be a number, got {bump_height_m!r}") from None
     if not math.isfinite(bump_h):
         raise ValueError(f"{where}: bump_height_m must be finite, got {bump_height_m!r}")
-    bump_l = _positive(where, "bump_length_m", bump_length_m)
+    bump_l = positive(where, "bump_length_m", bump_length_m)
     if bump_shape not in BUMP_SHAPES:
         raise ValueError(f"{where}: unknown bump_shape {bump_shape!r}; valid: {list(BUMP_SHAPES)}")
     if abs(bump_h) > bump_l / 2.0:
@@ -328,24 +316,24 @@ def city_bus(
         raise ValueError(
             f"{where}: unknown road_class {road_class!r}; valid: {sorted(ROAD_CLASSES_GD_M3)} or None"
         )
-    wheelbase = _positive(where, "wheelbase_m", wheelbase_m)
-    a_front = _positive(where, "cg_to_front_axle_m", cg_to_front_axle_m)
+    wheelbase = positive(where, "wheelbase_m", wheelbase_m)
+    a_front = positive(where, "cg_to_front_axle_m", cg_to_front_axle_m)
     if a_front >= wheelbase:
         raise ValueError(f"{where}: cg_to_front_axle_m {a_front} must be less than wheelbase_m {wheelbase}")
     b_rear = wheelbase - a_front
-    f_body = _positive(where, "body_freq_hz", body_freq_hz)
-    zeta = _positive(where, "body_damping_ratio", body_damping_ratio)
-    k_roll = _non_negative(where, "roll_gradient_rad_per_mps2", roll_gradient_rad_per_mps2)
-    k_pitch = _non_negative(where, "pitch_gradient_rad_per_mps2", pitch_gradient_rad_per_mps2)
+    f_body = positive(where, "body_freq_hz", body_freq_hz)
+    zeta = positive(where, "body_damping_ratio", body_damping_ratio)
+    k_roll = non_negative(where, "roll_gradient_rad_per_mps2", roll_gradient_rad_per_mps2)
+    k_pitch = non_negative(where, "pitch_gradient_rad_per_mps2", pitch_gradient_rad_per_mps2)
     offset = np.asarray(floor_offset_m, dtype=np.float64)
     if offset.shape != (3,) or not np.all(np.isfinite(offset)):
         raise ValueError(
             f"{where}: floor_offset_m must be 3 finite numbers (forward, left, up) m, got {floor_offset_m!r}"
         )
-    t_hold = _non_negative(where, "hold_s", hold_s)
-    dwell = _non_negative(where, "dwell_s", dwell_s)
-    duration = _positive(where, "duration_s", duration_s)
-    dt = _positive(where, "dt_s", dt_s)
+    t_hold = non_negative(where, "hold_s", hold_s)
+    dwell = non_negative(where, "dwell_s", dwell_s)
+    duration = positive(where, "duration_s", duration_s)
+    dt = positive(where, "dt_s", dt_s)
     if variant == "stop_and_go":
         # long enough for the front axle to reach the hump and the rear axle to leave it at v_c
         default_cruise = (
@@ -353,7 +341,7 @@ def city_bus(
         )
     else:
         default_cruise = EMERGENCY_CRUISE_S
-    t_cruise = default_cruise if cruise_s is None else _non_negative(where, "cruise_s", cruise_s)
+    t_cruise = default_cruise if cruise_s is None else non_negative(where, "cruise_s", cruise_s)
 
     # 1.-2. the schedule: longitudinal phases, turns, and the times the front axle meets a hump
     segments: list[JerkProfile] = [hold(t_hold)]

@@ -50,11 +50,16 @@ Parameter values (defaults) and sources
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from lasmp.eval.real_motion.motion import DEFAULT_DT_S, DEFAULT_DURATION_S, Motion, time_grid
+from lasmp.eval.real_motion.motion import (
+    DEFAULT_DT_S,
+    DEFAULT_DURATION_S,
+    Motion,
+    non_negative,
+    positive,
+    time_grid,
+)
 from lasmp.eval.real_motion.profiles import JerkProfile, concatenate, hold, s_curve, velocity_change
 
 VARIANTS = ("up", "down", "emergency_stop")
@@ -68,26 +73,6 @@ EMERGENCY_DECEL_MPS2 = 0.6 * G_N_MPS2
 EMERGENCY_ONSET_S = 0.05
 TRIP_AFTER_S = 1.0
 HOLD_S = 1.0
-
-
-def _positive(where: str, name: str, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: {name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(x) and x > 0):
-        raise ValueError(f"{where}: {name} must be a positive finite number, got {value!r}")
-    return x
-
-
-def _non_negative(where: str, name: str, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: {name} must be a number >= 0, got {value!r}") from None
-    if not (math.isfinite(x) and x >= 0):
-        raise ValueError(f"{where}: {name} must be a finite number >= 0, got {value!r}")
-    return x
 
 
 def lift_profile(
@@ -150,16 +135,16 @@ def lift(
     where = "lift"
     if variant not in VARIANTS:
         raise ValueError(f"{where}: unknown variant {variant!r}; valid: {list(VARIANTS)}")
-    travel = _positive(where, "travel_m", travel_m)
-    v_max = _positive(where, "v_max_mps", v_max_mps)
-    a_max = _positive(where, "a_max_mps2", a_max_mps2)
-    j_max = _positive(where, "j_max_mps3", j_max_mps3)
-    em_decel = _positive(where, "emergency_decel_mps2", emergency_decel_mps2)
-    em_onset = _positive(where, "emergency_onset_s", emergency_onset_s)
-    trip_after = _non_negative(where, "trip_after_s", trip_after_s)
-    t_hold = _non_negative(where, "hold_s", hold_s)
-    duration = _positive(where, "duration_s", duration_s)
-    dt = _positive(where, "dt_s", dt_s)
+    travel = positive(where, "travel_m", travel_m)
+    v_max = positive(where, "v_max_mps", v_max_mps)
+    a_max = positive(where, "a_max_mps2", a_max_mps2)
+    j_max = positive(where, "j_max_mps3", j_max_mps3)
+    em_decel = positive(where, "emergency_decel_mps2", emergency_decel_mps2)
+    em_onset = positive(where, "emergency_onset_s", emergency_onset_s)
+    trip_after = non_negative(where, "trip_after_s", trip_after_s)
+    t_hold = non_negative(where, "hold_s", hold_s)
+    duration = positive(where, "duration_s", duration_s)
+    dt = positive(where, "dt_s", dt_s)
 
     trip = lift_profile(variant, travel, v_max, a_max, j_max, em_decel, em_onset, trip_after)
     end_s = t_hold + trip.duration_s

@@ -14,6 +14,7 @@ A suite of motions is written as a "samples" trajectory file (:func:`to_trajecto
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -60,6 +61,31 @@ class Motion:
     @property
     def duration_s(self) -> float:
         return float(self.t_s[-1])
+
+
+def _number(where: str, name: str, value, ok, wanted: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: {name} must be {wanted}, got {value!r}") from None
+    if not (math.isfinite(x) and ok(x)):
+        raise ValueError(f"{where}: {name} must be {wanted}, got {value!r}")
+    return x
+
+
+def positive(where: str, name: str, value) -> float:
+    """`value` as a float; ValueError naming `where` and `name` unless it is finite and > 0."""
+    return _number(where, name, value, lambda x: x > 0, "a positive finite number")
+
+
+def non_negative(where: str, name: str, value) -> float:
+    """`value` as a float; ValueError naming `where` and `name` unless it is finite and >= 0."""
+    return _number(where, name, value, lambda x: x >= 0, "a finite number >= 0")
+
+
+def finite(where: str, name: str, value) -> float:
+    """`value` as a float; ValueError naming `where` and `name` unless it is finite."""
+    return _number(where, name, value, lambda x: True, "a finite number")
 
 
 def time_grid(duration_s: float, dt_s: float = DEFAULT_DT_S) -> np.ndarray:

@@ -51,6 +51,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from lasmp.eval.real_motion.motion import finite, positive
+
 
 class Kinematics(NamedTuple):
     """A sampled history: times (K,), s, and jerk, acceleration, velocity, position (K,) each."""
@@ -68,26 +70,6 @@ class Peaks(NamedTuple):
     jerk_mps3: float
     acc_mps2: float
     vel_mps: float
-
-
-def _positive(where: str, name: str, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: {name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(x) and x > 0):
-        raise ValueError(f"{where}: {name} must be a positive finite number, got {value!r}")
-    return x
-
-
-def _finite(where: str, name: str, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: {name} must be a finite number, got {value!r}") from None
-    if not math.isfinite(x):
-        raise ValueError(f"{where}: {name} must be a finite number, got {value!r}")
-    return x
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,7 +95,7 @@ class JerkProfile:
         if np.any(d < 0):
             raise ValueError(f"JerkProfile: phase durations must be >= 0, got {d.tolist()}")
         for name in ("p0_m", "v0_mps", "a0_mps2"):
-            object.__setattr__(self, name, _finite("JerkProfile", name, getattr(self, name)))
+            object.__setattr__(self, name, finite("JerkProfile", name, getattr(self, name)))
         object.__setattr__(self, "durations_s", d)
         object.__setattr__(self, "jerks_mps3", j)
 
@@ -185,10 +167,10 @@ class JerkProfile:
 def hold(duration_s: float, v_mps: float = 0.0) -> JerkProfile:
     """Zero jerk and acceleration for ``duration_s``: a hold at rest (v = 0) or a cruise at ``v_mps``."""
     where = "hold"
-    d = _finite(where, "duration_s", duration_s)
+    d = finite(where, "duration_s", duration_s)
     if d < 0:
         raise ValueError(f"{where}: duration_s must be >= 0, got {duration_s!r}")
-    return JerkProfile(np.array([d]), np.array([0.0]), v0_mps=_finite(where, "v_mps", v_mps))
+    return JerkProfile(np.array([d]), np.array([0.0]), v0_mps=finite(where, "v_mps", v_mps))
 
 
 def velocity_change_phases(dv_mps: float, a_max_mps2: float, j_max_mps3: float) -> tuple[float, float, float]:
@@ -208,10 +190,10 @@ def velocity_change(v0_mps: float, v1_mps: float, a_max_mps2: float, j_max_mps3:
     the change is too small to reach it. ``v0 == v1`` gives an empty (zero-length) profile.
     """
     where = "velocity_change"
-    v0 = _finite(where, "v0_mps", v0_mps)
-    v1 = _finite(where, "v1_mps", v1_mps)
-    a_max = _positive(where, "a_max_mps2", a_max_mps2)
-    j_max = _positive(where, "j_max_mps3", j_max_mps3)
+    v0 = finite(where, "v0_mps", v0_mps)
+    v1 = finite(where, "v1_mps", v1_mps)
+    a_max = positive(where, "a_max_mps2", a_max_mps2)
+    j_max = positive(where, "j_max_mps3", j_max_mps3)
     if v1 == v0:
         return JerkProfile(np.zeros(0), np.zeros(0), v0_mps=v0)
     t_j, t_a, _ = velocity_change_phases(v1 - v0, a_max, j_max)
@@ -245,10 +227,10 @@ def s_curve(distance_m: float, v_max_mps: float, a_max_mps2: float, j_max_mps3: 
     rounding.
     """
     where = "s_curve"
-    d = _finite(where, "distance_m", distance_m)
-    v_max = _positive(where, "v_max_mps", v_max_mps)
-    a_max = _positive(where, "a_max_mps2", a_max_mps2)
-    j_max = _positive(where, "j_max_mps3", j_max_mps3)
+    d = finite(where, "distance_m", distance_m)
+    v_max = positive(where, "v_max_mps", v_max_mps)
+    a_max = positive(where, "a_max_mps2", a_max_mps2)
+    j_max = positive(where, "j_max_mps3", j_max_mps3)
     if d == 0.0:
         return JerkProfile(np.zeros(0), np.zeros(0))
     v_peak = s_curve_peak_speed(d, v_max, a_max, j_max)

@@ -101,7 +101,14 @@ import numpy as np
 from scipy.signal import freqs
 from scipy.special import spherical_jn
 
-from lasmp.eval.real_motion.motion import DEFAULT_DT_S, DEFAULT_DURATION_S, Motion, deck_pose, time_grid
+from lasmp.eval.real_motion.motion import (
+    DEFAULT_DT_S,
+    DEFAULT_DURATION_S,
+    Motion,
+    deck_pose,
+    positive,
+    time_grid,
+)
 
 GRAVITY_M_S2 = 9.81
 JONSWAP_GAMMA = 3.3  # mean peak enhancement of the JONSWAP measurements (Hasselmann et al. 1973)
@@ -164,18 +171,8 @@ class WaveComponents:
         return _sum_of_cosines(t, self.omega_rad_s, a)[:, 0]
 
 
-def _check_positive(where: str, name: str, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: {name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(x) and x > 0):
-        raise ValueError(f"{where}: {name} must be a positive finite number, got {value!r}")
-    return x
-
-
 def _check_gamma(where: str, gamma: float) -> float:
-    g = _check_positive(where, "gamma", gamma)
+    g = positive(where, "gamma", gamma)
     if g < 1.0:  # gamma < 1 would flatten the peak below Pierson-Moskowitz: not a JONSWAP sea
         raise ValueError(f"{where}: gamma (peak enhancement) must be >= 1, got {gamma!r}")
     return g
@@ -183,8 +180,8 @@ def _check_gamma(where: str, gamma: float) -> float:
 
 def jonswap_spectrum(omega_rad_s, hs_m: float, tp_s: float, gamma: float = JONSWAP_GAMMA) -> np.ndarray:
     """JONSWAP wave spectrum S(omega), m^2 s/rad, one-sided (DNV-RP-C205 (2010) 3.5.5; see module doc)."""
-    hs = _check_positive("jonswap_spectrum", "hs_m", hs_m)
-    tp = _check_positive("jonswap_spectrum", "tp_s", tp_s)
+    hs = positive("jonswap_spectrum", "hs_m", hs_m)
+    tp = positive("jonswap_spectrum", "tp_s", tp_s)
     g = _check_gamma("jonswap_spectrum", gamma)
     w = np.asarray(omega_rad_s, dtype=np.float64)
     wp = 2.0 * np.pi / tp
@@ -206,8 +203,8 @@ def wave_components(
     n_components: int = N_COMPONENTS,
 ) -> WaveComponents:
     """The random-phase cosines of a JONSWAP sea (jittered frequency grid; see module docstring)."""
-    hs = _check_positive("wave_components", "hs_m", hs_m)
-    tp = _check_positive("wave_components", "tp_s", tp_s)
+    hs = positive("wave_components", "hs_m", hs_m)
+    tp = positive("wave_components", "tp_s", tp_s)
     if int(n_components) != n_components or n_components < 1:
         raise ValueError(f"wave_components: n_components must be a positive integer, got {n_components!r}")
     n = int(n_components)
@@ -245,8 +242,8 @@ def wave_elevation(
 
 def second_order_gain(omega_rad_s, natural_omega_rad_s: float, damping_ratio: float) -> np.ndarray:
     """H(w) = wn^2 / (wn^2 - w^2 + 2 i zeta wn w): unit static gain, 1 / (2 zeta) at resonance (complex)."""
-    wn = _check_positive("second_order_gain", "natural_omega_rad_s", natural_omega_rad_s)
-    zeta = _check_positive("second_order_gain", "damping_ratio", damping_ratio)
+    wn = positive("second_order_gain", "natural_omega_rad_s", natural_omega_rad_s)
+    zeta = positive("second_order_gain", "damping_ratio", damping_ratio)
     w = np.asarray(omega_rad_s, dtype=np.float64)
     _, h = freqs([wn**2], [1.0, 2.0 * zeta * wn, wn**2], worN=w.reshape(-1))
     return h.reshape(w.shape)
@@ -348,12 +345,12 @@ def ship_deck(
             "(hs_m and tp_s override a preset's values)"
         )
     preset_hs, preset_tp = SEA_STATES[sea_state]
-    hs = _check_positive(where, "hs_m", preset_hs if hs_m is None else hs_m)
-    tp = _check_positive(where, "tp_s", preset_tp if tp_s is None else tp_s)
+    hs = positive(where, "hs_m", preset_hs if hs_m is None else hs_m)
+    tp = positive(where, "tp_s", preset_tp if tp_s is None else tp_s)
     g = _check_gamma(where, gamma)
-    duration = _check_positive(where, "duration_s", duration_s)
-    dt = _check_positive(where, "dt_s", dt_s)
-    ramp = _check_positive(where, "ramp_s", ramp_s)
+    duration = positive(where, "duration_s", duration_s)
+    dt = positive(where, "dt_s", dt_s)
+    ramp = positive(where, "ramp_s", ramp_s)
     if not math.isfinite(float(heading_deg)):
         raise ValueError(f"{where}: heading_deg must be finite, got {heading_deg!r}")
     offset = np.asarray(deck_offset_m, dtype=np.float64)

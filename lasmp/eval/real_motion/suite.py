@@ -275,6 +275,8 @@ def comparison_table(result_dirs: list, labels: list[str] | None = None) -> str:
         return f"{m['collision_rate']['mean']:.2f} / {m['position_deviation_m']['mean']:.3f}"
 
     lines = ["| scenario | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
-    lines += [f"| {n} | " + " | ".join(cell(r["scenarios"][n]["metrics"]) for r in results) + " |" for n in names]
+    lines += [
+        f"| {n} | " + " | ".join(cell(r["scenarios"][n]["metrics"]) for r in results) + " |" for n in names
+    ]
     lines.append("| **all** | " + " | ".join(cell(r["overall"]) for r in results) + " |")
     return "\n".join(lines)

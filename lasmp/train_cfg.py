@@ -77,6 +77,7 @@ class AlgoCfg:
     # (README "Results", the deployment gap)
     estimate_rollout_every: int = 2
     estimate_rollout_start: int = 100
+    fused_adam: bool = False  # (ours) both Adams as one fused kernel (bench/train_iteration.py)
 
 
 @dataclass

@@ -3,6 +3,7 @@ Hydra composition of every ablation, and the real train.py CLI at a tiny size.""
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -113,6 +114,19 @@ def test_the_runner_sets_each_iterations_mode(tmp_path):
     runner.alg.update = spy
     runner.learn(4)
     assert modes == [False, True, False, True]  # iterations 0..3: on at 1 and 3
+
+
+def test_fused_adam_option_builds_fused_optimizers_over_the_same_parameters(tmp_path):
+    plain = make_runner(tiny(tmp_path), None).alg
+    fused = make_runner(tiny(tmp_path, algo={"fused_adam": True}), None)
+    alg = fused.alg
+    assert alg.optimizer.defaults["fused"] and alg.estimator_optimizer.defaults["fused"]
+    shapes = [[tuple(p.shape) for p in g["params"]] for g in alg.optimizer.param_groups]
+    assert shapes == [[tuple(p.shape) for p in g["params"]] for g in plain.optimizer.param_groups]
+    rollout(fused)
+    before = params(alg.get_policy())
+    losses = alg.update()
+    assert all(math.isfinite(v) for v in losses.values()) and changed(before, alg.get_policy(), "mlp")
 
 
 def test_time_outs_are_bootstrapped_and_terminations_are_not(tmp_path):

@@ -19,6 +19,8 @@ learns to live with estimation errors (`rollout_on_estimates`, called by the run
 
 from __future__ import annotations
 
+from itertools import chain
+
 import torch
 import torch.nn as nn
 from rsl_rl.algorithms import PPO
@@ -35,9 +37,14 @@ class PPOROA(PPO):
         estimator_epochs: int = 1,
         estimate_rollout_every: int = 0,
         estimate_rollout_start: int = 0,
+        fused_adam: bool = False,
         **kwargs,
     ) -> None:
         super().__init__(actor, critic, storage, **kwargs)
+        if fused_adam:  # the same Adam in one fused kernel; on a CPU PyTorch otherwise loops per tensor
+            self.optimizer = torch.optim.Adam(
+                chain(self.actor.parameters(), self.critic.parameters()), lr=self.learning_rate, fused=True
+            )
         if roa_lambda < 0:
             raise ValueError(f"algorithm.roa_lambda must be >= 0, got {roa_lambda}")
         if estimator_epochs < 1:
@@ -47,7 +54,9 @@ class PPOROA(PPO):
         self.estimate_rollout_every = estimate_rollout_every
         self.estimate_rollout_start = estimate_rollout_start
         self._estimator_params = list(actor.estimator_parameters())
-        self.estimator_optimizer = torch.optim.Adam(self._estimator_params, lr=estimator_learning_rate)
+        self.estimator_optimizer = torch.optim.Adam(
+            self._estimator_params, lr=estimator_learning_rate, fused=True if fused_adam else None
+        )
 
     def rollout_on_estimates(self, iteration: int) -> bool:
         """Set whether iteration `iteration` (its rollout and PPO update) acts on the estimates."""

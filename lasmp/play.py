@@ -49,7 +49,8 @@ from lasmp.train_cfg import rsl_rl_cfg
 # ---------------------------------------------------------------------------------------------
 # Loading
 # ---------------------------------------------------------------------------------------------
-DEPLOY_LOAD = {"actor": True, "critic": True, "optimizer": False, "iteration": True}  # no optimizer needed
+# no optimizer needed, and the env keeps its own running state (its size may differ from training's)
+DEPLOY_LOAD = {"actor": True, "critic": True, "optimizer": False, "iteration": True, "env_run_state": False}
 
 
 def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None,

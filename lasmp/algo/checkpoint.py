@@ -4,7 +4,9 @@ A checkpoint (format "lasmp-checkpoint-v1") is a dict saved with `torch.save`:
 - the learner's state (`LasmpRunner.save`: all networks with their normalizers, both optimizers);
 - `iter`: the last *completed* iteration (a resume continues at iter + 1);
 - `config`: the resolved TrainCfg as a plain dict; `obs_layout` and `num_actions`;
-- `env_state`: the env's own state (curriculum level and window);
+- `env_state`: the env's own state: the curriculum's level and window, and under "run" every env's
+  running state (physics, per-env model fields, buffers, trajectories, intrinsics), so that a
+  resume continues bit for bit (older checkpoints lack "run": their envs restart their episodes);
 - `rng_state`: torch's and the env's numpy random states at the save, so that a resume continues
   the random streams instead of replaying them from the seed (optional: older checkpoints lack it).
 A *policy checkpoint* (`policy_checkpoint`, `kind` = "policy") is the same file without the
@@ -89,6 +91,7 @@ def policy_checkpoint(src: str | Path, dst: str | Path) -> Path:
     the optimizers' states (networks with their normalizers, config, layout, env state)."""
     data = read_checkpoint(src)
     slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
+    slim["env_state"] = {k: v for k, v in (data.get("env_state") or {}).items() if k != "run"}  # task state only
     slim.update(kind="policy", source=f"{Path(data['path']).name} (iteration {data['iter']})")
     check_finite(slim, f"refusing to write {dst}")
     atomic_torch_save(slim, dst)

@@ -196,8 +196,8 @@ class LasmpRunner(OnPolicyRunner):
         self.alg.load(data, load_cfg, strict)
         if load_cfg is None or load_cfg.get("iteration", True):
             self.current_learning_iteration = int(data["iter"]) + 1  # the saved iteration is complete
-        if data.get("env_state"):
-            self.env.load_state_dict(data["env_state"])
+        if data.get("env_state"):  # the running state only to resume training in an env of the same size
+            self.env.load_state_dict(data["env_state"], run=load_cfg is None or load_cfg.get("env_run_state", True))
         if data.get("rng_state"):  # older checkpoints lack it: the streams then restart from the seed
             set_rng_state(data["rng_state"], self.env.rng)
         return data.get("infos")

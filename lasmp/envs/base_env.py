@@ -15,6 +15,7 @@ bootstrapped), `extras["log"]` holds per-episode reward terms and task metrics.
 
 from __future__ import annotations
 
+import copy
 from abc import abstractmethod
 
 import numpy as np
@@ -56,6 +57,40 @@ class BaseEnv(VecEnv):
         # evaluation hook: when set, only these envs' physics advance (the idle envs at the tail of an
         # evaluation); the others keep their state, and their outputs are to be ignored
         self.stepped_envs: np.ndarray | None = None
+
+    # what a checkpoint carries for an exact resume, besides the physics: the per-env buffers the step
+    # loop reads (a task lists its own in TASK_STATE)
+    RUN_STATE = ("episode_length_buf", "history", "_obs", "_fresh", "fault_count", "nonfinite_obs_values")
+    TASK_STATE: tuple[str, ...] = ()
+
+    def state_dict(self, run: bool = True) -> dict:
+        """The task's persistent state (e.g. the curriculum) and, with `run`, the running state of
+        every env (physics, buffers, trajectories, intrinsics): enough for a resume that continues
+        bit for bit, together with the random states the checkpoint saves."""
+        d = self._task_state()
+        if run:
+            names = self.RUN_STATE + self.TASK_STATE
+            d["run"] = {"num_envs": self.num_envs, "sim": self.sim.get_state(),
+                        "attrs": copy.deepcopy({k: getattr(self, k) for k in names})}  # fmt: skip
+        return d
+
+    def load_state_dict(self, d: dict, run: bool = True) -> None:
+        """Restore `state_dict` output; the running state only with `run` and a saved one (older
+        checkpoints and policy checkpoints carry the task state alone)."""
+        self._load_task_state(d)
+        saved = d.get("run")
+        if run and saved is not None:
+            if saved["num_envs"] != self.num_envs:
+                raise ValueError(f"saved running state is for {saved['num_envs']} envs, this env has {self.num_envs}")
+            self.sim.set_state(saved["sim"])
+            for key, value in copy.deepcopy(saved["attrs"]).items():
+                setattr(self, key, value)
+
+    def _task_state(self) -> dict:
+        return {}
+
+    def _load_task_state(self, d: dict) -> None:
+        pass
 
     # -- the task fills these ----------------------------------------------------------------
     @abstractmethod

@@ -38,6 +38,7 @@ class CpuBatchSim:
         self.site_xpos = b.bind("site_xpos")
         self.actuator_force = b.bind("actuator_force")
         self._warnings_seen = self._warning_count().copy()
+        self._expanded: list[str] = []  # model fields given per-env values (domain randomization)
         self.step_time_s = 0.0  # wall time spent inside Batch.step, for benchmarks
 
     def _warning_count(self) -> np.ndarray:
@@ -45,7 +46,31 @@ class CpuBatchSim:
 
     def expand(self, name: str) -> np.ndarray:
         """Per-env values of a model field, (num_envs, ...), live."""
+        if name not in self._expanded:
+            self._expanded.append(name)
         return self.batch.expand(name)
+
+    def get_state(self) -> dict:
+        """Everything a later `set_state` needs to continue bit for bit: each env's full integration
+        state (positions, velocities, actuator states, controls, warm start, ...) and the per-env
+        model fields."""
+        return {
+            "state": self.batch.state.copy(),
+            "model": {name: np.array(self.batch.expand(name)) for name in self._expanded},
+        }
+
+    def set_state(self, saved: dict) -> None:
+        """Restore `get_state` output: the model fields (and the constants derived from them), the
+        integration state, and the position and velocity stages a step continues from."""
+        if saved["state"].shape != self.batch.state.shape:
+            raise ValueError(f"saved physics state has shape {saved['state'].shape}, this batch "
+                             f"{self.batch.state.shape} (another num_envs or model)")  # fmt: skip
+        for name, values in saved["model"].items():
+            self.expand(name)[:] = values
+        self.batch.set_const()
+        self.batch.state[:] = saved["state"]
+        self.batch.forward(stage=_STAGE_VEL)
+        self._warnings_seen[:] = self._warning_count()
 
     def step(self, nstep: int, ids: np.ndarray | None = None) -> np.ndarray:
         """Advance all envs (or only envs `ids`) `nstep` physics steps; return the (num_envs,) mask of

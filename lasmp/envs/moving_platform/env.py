@@ -276,9 +276,12 @@ class MovingPlatformEnv(BaseEnv):
         return self._package_observations(o, groups)
 
     # -- checkpoint state ----------------------------------------------------------------------
-    def state_dict(self) -> dict:
+    TASK_STATE = ("action", "action_prev", "tau_prev", "q_dot_prev", "contact_prev", "t_air_s", "t_contact_s",
+                  "traj", "traj_level", "_file_cursor", "intrinsics", "rewards", "readout", "last_state")  # fmt: skip
+
+    def _task_state(self) -> dict:
         return {"curriculum": self.curriculum.state_dict() if self.curriculum is not None else None}
 
-    def load_state_dict(self, d: dict) -> None:
+    def _load_task_state(self, d: dict) -> None:
         if self.curriculum is not None and d.get("curriculum") is not None:
             self.curriculum.load_state_dict(d["curriculum"])

@@ -229,8 +229,6 @@ class RoughStaticEnv(BaseEnv):
         return self._package_observations(o, groups)
 
     # -- checkpoint state (nothing: no curriculum) ---------------------------------------------
-    def state_dict(self) -> dict:
-        return {}
-
-    def load_state_dict(self, d: dict) -> None:
-        pass
+    TASK_STATE = ("command", "command_time_left_s", "push_time_left_s", "pushed", "push_dv_mps", "action",
+                  "action_prev", "q_dot_prev", "contact_prev", "t_air_s", "intrinsics", "rewards", "readout",
+                  "last_state")  # fmt: skip

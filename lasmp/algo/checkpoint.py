@@ -10,7 +10,8 @@ A checkpoint (format "lasmp-checkpoint-v1") is a dict saved with `torch.save`:
 - `rng_state`: torch's and the env's numpy random states at the save, so that a resume continues
   the random streams instead of replaying them from the seed (optional: older checkpoints lack it).
 A *policy checkpoint* (`policy_checkpoint`, `kind` = "policy") is the same file without the
-optimizers' states: a few MB that play.py and evaluate.py load, and train.py refuses to resume.
+optimizers' states and the envs' running state: a few MB that play.py and evaluate.py load, and
+train.py refuses to resume.
 It is written to a temporary file in the same directory and renamed over the target
 (`atomic_torch_save`), so an interrupted save never leaves a truncated checkpoint behind.
 """
@@ -88,7 +89,8 @@ def is_policy_only(data: dict) -> bool:
 
 def policy_checkpoint(src: str | Path, dst: str | Path) -> Path:
     """Write the policy checkpoint of `src` (a checkpoint or run directory) to `dst`: everything but
-    the optimizers' states (networks with their normalizers, config, layout, env state)."""
+    the optimizers' states and the envs' running state (networks with their normalizers, config,
+    layout, the task's env state such as the curriculum)."""
     data = read_checkpoint(src)
     slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
     slim["env_state"] = {k: v for k, v in (data.get("env_state") or {}).items() if k != "run"}  # task state only

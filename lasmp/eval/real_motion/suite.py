@@ -185,7 +185,8 @@ def markdown(result: dict) -> str:
         f"# {result['method']} on the real-motion suite",
         "",
         f"{result['robots_per_scenario']} benchmark robots per scenario, {result['duration_s']:.0f}-s episodes, "
-        f"platform drive `{result['platform_drive']}`; mean ± std over {NUM_BATCHES} batches of robots.",
+        f"platform drive `{result['platform_drive']}`; mean ± std over {NUM_BATCHES} batches of robots "
+        "(the last row: over scenarios).",
         "",
         "| scenario | " + " | ".join(LABELS[k] for k in METRICS) + " |",
         "|---|" + "---|" * len(METRICS),

@@ -40,6 +40,7 @@ class CpuBatchSim:
         self._warnings_seen = self._warning_count().copy()
         self._expanded: list[str] = []  # model fields given per-env values (domain randomization)
         self.step_time_s = 0.0  # wall time spent inside Batch.step, for benchmarks
+        self.env_steps = 0  # policy steps simulated, summed over envs (fewer with `ids`), for benchmarks
 
     def _warning_count(self) -> np.ndarray:
         return self.batch.warning[:, :, 1].sum(axis=1)  # (nsim,) total warnings raised so far
@@ -82,6 +83,7 @@ class CpuBatchSim:
         except mujoco.batch.SimulationError as err:
             faulted[err.ids] = True
         self.step_time_s += time.perf_counter() - start
+        self.env_steps += self.num_envs if ids is None else len(ids)
         warnings = self._warning_count()
         faulted |= warnings != self._warnings_seen
         self._warnings_seen[:] = warnings

@@ -133,7 +133,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.integrate import cumulative_simpson
-from scipy.signal import cont2discrete, lfilter
 
 from lasmp.eval.real_motion.motion import (
     DEFAULT_DT_S,
@@ -144,6 +143,7 @@ from lasmp.eval.real_motion.motion import (
     positive,
     time_grid,
 )
+from lasmp.eval.real_motion.noise import lti_filter
 from lasmp.eval.real_motion.profiles import JerkProfile, concatenate, hold, velocity_change
 
 VARIANTS = ("stop_and_go", "emergency_brake")
@@ -233,10 +233,8 @@ def _second_order(u: np.ndarray, t_s: np.ndarray, freq_hz: float, zeta: float, w
     base-excited sprung mass) or ``w^2 / (s^2 + 2 zeta w s + w^2)`` (a low-pass body mode) to u(t)."""
     w = 2.0 * np.pi * freq_hz
     num = [2.0 * zeta * w, w * w] if with_rate else [w * w]
-    # exact for an input linear between samples (first-order hold), as scipy.signal.lsim, but
-    # as a recursive filter (lfilter) instead of lsim's per-sample Python loop
-    num_d, den_d, _ = cont2discrete((num, [1.0, 2.0 * zeta * w, w * w]), float(t_s[1] - t_s[0]), method="foh")
-    return lfilter(np.ravel(num_d), den_d, u)
+    # first-order hold: exact for an input linear between samples, as scipy.signal.lsim
+    return lti_filter(num, [1.0, 2.0 * zeta * w, w * w], u, float(t_s[1] - t_s[0]), method="foh")
 
 
 def city_bus(

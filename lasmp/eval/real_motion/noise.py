@@ -46,8 +46,9 @@ def lti_filter(num, den, u: np.ndarray, dt_s: float, method: str = "bilinear") -
     """``H(s) = num(s) / den(s)`` (coefficients in descending powers of s) applied to samples ``u``.
 
     Zero initial state. ``method`` is that of ``scipy.signal.cont2discrete``: "bilinear" (Tustin,
-    the trapezoidal rule: second-order accurate for smooth inputs) or "zoh" (exact for an input
-    held constant over each step, as white noise is in :func:`filtered_white_noise`).
+    the trapezoidal rule: second-order accurate for smooth inputs), "zoh" (exact for an input
+    held constant over each step, as white noise is in :func:`filtered_white_noise`) or "foh"
+    (exact for an input linear between samples).
     """
     if dt_s <= 0:
         raise ValueError(f"lti_filter: dt_s must be positive, got {dt_s}")

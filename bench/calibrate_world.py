@@ -17,7 +17,6 @@ and stream, so candidates differ only by their construction.
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import math
 import sys
@@ -29,6 +28,7 @@ import torch
 from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
+from lasmp.envs.robot import as_numpy
 from lasmp.eval import benchmark as bm
 from lasmp.eval.cli import eval_env_overrides
 from lasmp.eval.metrics import EpisodeMetrics
@@ -115,7 +115,7 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
     cap = {}
 
     def capture(readout, collision):
-        cap.update(readout=copy.deepcopy(readout), collision=collision.copy())
+        cap.update(readout=as_numpy(readout), collision=collision.numpy().copy())
 
     def start(ids, readout):
         for ref, m in metrics.items():
@@ -125,7 +125,7 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
     env.on_step = capture
     env.reset()
     n = env.num_envs
-    start(np.arange(n), env.readout)
+    start(np.arange(n), as_numpy(env.readout))
     keys = ("steps", "viol_centre", "viol_surface", "pos_platform", "pos_translating", "rot", "power")
     out = {k: np.full(episodes, np.nan) for k in (*keys, "collision")}
     zeros = torch.zeros(n, 12)
@@ -154,7 +154,7 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
             done_count += len(ids)
         restarted = np.flatnonzero(done)
         if len(restarted):
-            start(restarted, env.readout)
+            start(restarted, as_numpy(env.readout))
     counted = out["steps"] > 0
     mean = {k: float(np.mean(out[k][counted])) for k in keys if k != "steps"}
     row = {

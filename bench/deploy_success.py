@@ -33,7 +33,7 @@ def main(argv=None) -> int:
         for k in range(env.max_episode_length):
             obs, _, done, extras = env.step(policy(obs))
             if k >= 50:  # the trunk's height above the top surface once the stance has settled, m
-                heights.append((env.readout.p_body_p[:, 2] - env.plf_top_m)[alive])
+                heights.append((env.readout.p_body_p[:, 2].numpy() - env.plf_top_m)[alive])
             done = done.numpy() & alive
             t_end[done & ~extras["time_outs"].numpy()] = (k + 1) * env.dt_s
             alive &= ~done

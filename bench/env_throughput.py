@@ -1,14 +1,16 @@
-"""Throughput of the full moving-platform env vs raw `Batch.step` on the same model, one run.
+"""Throughput of the full moving-platform env vs its raw physics backend on the same model, one run.
 
 The env runs the Stand Still controller (a = 0) with everything on: observations, rewards,
-terminations, resets, domain randomization, trajectories. The raw baseline steps the same
-compiled model, same env count and threads, same per-env parameters, same `nstep = decimation`
-and post-step stage, from the very states the env's physics met (50 recorded during the env
-run, each restored before one timed `Batch.step`), and does nothing else. Both are reported in policy steps per second (env steps x envs / s);
+terminations, resets, domain randomization, trajectories. The raw baseline is a second backend of
+the same kind (`--backend`: cpu = `mujoco.batch.Batch`, warp = MuJoCo Warp on `--device`) on the
+same compiled model, same env count and threads, same per-env parameters, same `nstep =
+decimation`, stepped from the very states the env's physics met (50 recorded during the env run,
+each restored with `set_state` before one timed `step`), and does nothing else. Both are reported in policy steps per second (env steps x envs / s);
 `ratio` = env / raw; `env_physics_share` is the
 share of the env's own wall time spent inside `Batch.step` on its states. Also reports the Stand Still collision rate over the episodes it ended.
 
     python bench/env_throughput.py --num-envs 1024 --json
+    python bench/env_throughput.py --backend warp --device cuda --num-envs 8192 --json
 """
 
 from __future__ import annotations
@@ -17,11 +19,10 @@ import argparse
 import json
 import time
 
-import mujoco
-import mujoco.batch
 import numpy as np
 import torch
 
+from lasmp.envs.backends import make_backend
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
 
@@ -31,19 +32,19 @@ def measure_env(env: MovingPlatformEnv, steps: int, snapshots: list | None = Non
     episodes = collisions = 0
     env.sim.step_time_s = 0.0
     physics_step = env.sim.step
-    if snapshots is not None:  # integration state (qpos, qvel, act, ctrl, warm start) as each step sees it
+    if snapshots is not None:  # the physics state (and per-env model) as each step sees it
         every = max(1, steps // 50)
 
         def recording_step(nstep, ids=None):
-            if len(snapshots) < 50 and env.episode_length_buf[0] % every == 0:
-                snapshots.append(env.sim.batch.state.copy())
+            if len(snapshots) < 50 and int(env.episode_length_buf[0]) % every == 0:
+                snapshots.append(env.sim.get_state())
             return physics_step(nstep, ids)
 
         env.sim.step = recording_step
     start = time.perf_counter()
     for _ in range(steps):
         _, _, done, extras = env.step(actions)
-        ended = int(done.sum())
+        ended = int(done.sum())  # a host sync each step, so the GPU's queue is drained when timed
         episodes += ended
         collisions += ended - int(extras["time_outs"].sum())
     elapsed = time.perf_counter() - start
@@ -53,20 +54,16 @@ def measure_env(env: MovingPlatformEnv, steps: int, snapshots: list | None = Non
 
 
 def measure_raw(env: MovingPlatformEnv, snapshots: list) -> float:
-    """Raw Batch.step on the env's own states: a new batch of the same model, with the same
-    per-env parameters, restarted from each recorded state; only the step itself is timed."""
-    batch = mujoco.batch.Batch(env.sim.model, env.num_envs, nthread=env.cfg.sim.num_threads, persistent=True)
-    for name in ("body_mass", "body_ipos", "geom_friction", "actuator_gainprm", "actuator_biasprm"):
-        batch.expand(name)[:] = env.sim.batch.expanded(name)
-    batch.set_const()
-    stage = int(mujoco.mjtStage.mjSTAGE_VEL)
+    """Raw backend steps on the env's own states: a new backend of the same kind and model, restarted
+    from each recorded state (per-env parameters included); only the stepping itself is timed (the
+    backend's `step_time_s`, which leaves out its fault screen)."""
+    sim = make_backend(env.cfg.backend, env.sim.model, env.num_envs, env.cfg.sim, env.device)
     elapsed = 0.0
     for state in snapshots:
-        batch.state[:] = state
-        batch.forward(stage=stage)  # the stages the env's step starts from
-        start = time.perf_counter()
-        batch.step(nstep=env.cfg.sim.decimation, stage=stage)
-        elapsed += time.perf_counter() - start
+        sim.set_state(state)
+        before = sim.step_time_s
+        sim.step(env.cfg.sim.decimation)
+        elapsed += sim.step_time_s - before
     return len(snapshots) * env.num_envs / elapsed
 
 
@@ -76,11 +73,14 @@ def main(argv=None) -> dict:
     p.add_argument("--steps", type=int, default=1000, help="policy steps of the env (2 episodes at 500)")
     p.add_argument("--threads", type=int, default=0, help="Batch threads, 0 = all cores")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--backend", choices=("cpu", "warp"), default="cpu", help="physics backend (env.backend)")
+    p.add_argument("--device", default="cpu", help="the warp backend's device: cuda[:N], or cpu (Warp's CPU device)")
     p.add_argument("--json", action="store_true", help="print one JSON object only")
     args = p.parse_args(argv)
     torch.set_num_threads(1)  # the env's tensor work is small; leave the cores to the physics threads
     env = MovingPlatformEnv(
-        {"num_envs": args.num_envs, "seed": args.seed, "sim": {"num_threads": args.threads}}
+        {"num_envs": args.num_envs, "seed": args.seed, "backend": args.backend, "sim": {"num_threads": args.threads}},
+        device=args.device,
     )
     env.reset()
     measure_env(env, 5)  # warm-up
@@ -89,7 +89,9 @@ def main(argv=None) -> dict:
     raw = measure_raw(env, snapshots)
     result = {
         "num_envs": args.num_envs,
-        "threads": env.sim.batch.nthread,
+        "backend": args.backend,
+        "device": str(env.device),
+        "threads": env.sim.batch.nthread if args.backend == "cpu" else None,
         "env_steps_per_s": round(env_sps, 1),
         "raw_steps_per_s": round(raw, 1),
         "ratio": round(env_sps / raw, 3),

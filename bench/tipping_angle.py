@@ -40,10 +40,10 @@ def fall_tilt(axis: str, yaw: float, sim: dict, path: str) -> dict:
         if done[0]:
             break
         tilt = float(
-            np.arccos(np.clip(env.readout.r_wp[0, 2, 2], -1.0, 1.0))
+            np.arccos(np.clip(float(env.readout.r_wp[0, 2, 2]), -1.0, 1.0))
         )  # the platform's, not the reference's
         if creep is None and tilt >= CREEP_AT_RAD:
-            creep = float(np.linalg.norm(env.readout.p_body_p[0, :2]))
+            creep = float(np.linalg.norm(env.readout.p_body_p[0, :2].numpy()))
     fell = bool(done[0]) and not bool(extras["time_outs"][0])
     return {"axis": axis, "robot_yaw_deg": round(np.degrees(yaw)), "fell": fell,
             "tilt_at_fall_rad": tilt if fell else None, f"creep_at_{CREEP_AT_RAD}_rad_m": creep}  # fmt: skip

@@ -6,6 +6,7 @@ Runs rsl_rl's own `learn()` for a few iterations and splits each one into physic
 object with the seconds per iteration of each part and the end-to-end policy steps per second.
 
     python bench/train_iteration.py --json [--num-envs 1024] [--iterations 3] [override ...]
+    python bench/train_iteration.py --json --backend warp --device cuda --num-envs 8192
 """
 
 from __future__ import annotations
@@ -43,11 +44,15 @@ def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--num-envs", type=int, default=None, help="default: the config's (1024)")
     p.add_argument("--iterations", type=int, default=3)
+    p.add_argument("--backend", choices=("cpu", "warp"), default=None, help="physics backend (env.backend)")
+    p.add_argument("--device", default=None, help="learner device, and the warp backend's (cpu, cuda[:N])")
     p.add_argument("--json", action="store_true")
     p.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. policy=no_alignment_command")
     args = p.parse_args(argv)
     register_configs()
     overrides = list(args.overrides) + ([f"env.num_envs={args.num_envs}"] if args.num_envs else [])
+    overrides += [f"env.backend={args.backend}"] if args.backend else []
+    overrides += [f"device={args.device}"] if args.device else []
     with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
         cfg = to_train_cfg(compose("config", overrides=overrides))
     with contextlib.redirect_stdout(io.StringIO()) if args.json else contextlib.nullcontext():
@@ -67,6 +72,8 @@ def main(argv=None) -> dict:
     n = args.iterations
     steps = n * cfg.env.num_envs * cfg.runner.num_steps_per_env
     result = {
+        "backend": cfg.env.backend,
+        "device": cfg.device,
         "num_envs": cfg.env.num_envs,
         "iterations": n,
         "s_per_iteration": round(wall / n, 3),

@@ -73,9 +73,12 @@ class SimCfg:
     decimation: int = 4  # physics steps per policy step -> policy dt 0.02 s (ours)
     num_threads: int = 0  # Batch worker threads; 0 = all cores
     solver_iterations: int = 20  # fewer than MuJoCo's 100: contacts converge well before (ours)
+    solver_tolerance: float = 1e-8  # MuJoCo's default; MuJoCo Warp raises it to at least 1e-6
     cone: str = "pyramidal"  # MuJoCo friction cone: pyramidal (MuJoCo's default) | elliptic
     impratio: float = 1.0  # frictional-to-normal constraint impedance ratio (MuJoCo's default 1)
     noslip_iterations: int = 0  # MuJoCo's no-slip post-solver passes (0 = off): removes soft-contact creep
+    warp_contacts_per_env: int = 64  # warp only: contact slots per env (MuJoCo Warp preallocates)
+    warp_constraints_per_env: int = 256  # warp only: constraint rows per env
 
     def validate(self, p: str):
         check_positive(f"{p}.dt_s", self.dt_s)
@@ -87,11 +90,14 @@ class SimCfg:
             raise ConfigError(f"{p}.num_threads must be >= 0 (0 = all cores), got {self.num_threads}")
         if self.solver_iterations < 1:
             raise ConfigError(f"{p}.solver_iterations must be >= 1, got {self.solver_iterations}")
+        check_positive(f"{p}.solver_tolerance", self.solver_tolerance)
         if self.cone not in ("pyramidal", "elliptic"):
             raise ConfigError(f"{p}.cone must be 'pyramidal' or 'elliptic', got {self.cone!r}")
         check_positive(f"{p}.impratio", self.impratio)
         if self.noslip_iterations < 0:
             raise ConfigError(f"{p}.noslip_iterations must be >= 0, got {self.noslip_iterations}")
+        if self.warp_contacts_per_env < 1 or self.warp_constraints_per_env < 1:
+            raise ConfigError(f"{p}.warp_contacts_per_env and warp_constraints_per_env must be >= 1")
 
 
 @dataclass
@@ -190,6 +196,7 @@ class InitStateCfg:
 class BaseEnvCfg:
     num_envs: int = 256
     seed: int = 0
+    backend: str = "cpu"  # physics: cpu (mujoco.batch) | warp (MuJoCo Warp; pip install -e ".[gpu]")
     sim: SimCfg = field(default_factory=SimCfg)
     control: ControlCfg = field(default_factory=ControlCfg)
     observations: ObservationsCfg = field(default_factory=ObservationsCfg)
@@ -198,6 +205,8 @@ class BaseEnvCfg:
         check_known_keys(self, p)
         if self.num_envs < 1:
             raise ConfigError(f"{p}.num_envs must be >= 1, got {self.num_envs}")
+        if self.backend not in ("cpu", "warp"):
+            raise ConfigError(f"{p}.backend must be 'cpu' or 'warp', got {self.backend!r}")
         for f in fields(self):
             value = getattr(self, f.name)
             if is_dataclass(value):

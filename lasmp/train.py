@@ -20,7 +20,10 @@ def seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
-def make_env(cfg: TrainCfg, device: str = "cpu"):
+def make_env(cfg: TrainCfg):
+    """The task's env. Its tensors live where its physics runs: on the CPU with the cpu backend (the
+    learner may still be on a GPU: the runner moves observations), on `cfg.device` with warp."""
+    device = cfg.device if cfg.env.backend == "warp" else "cpu"
     if cfg.task == "rough_static":
         from lasmp.envs.rough_static.env import RoughStaticEnv
 

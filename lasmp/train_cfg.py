@@ -93,7 +93,7 @@ class RunnerCfg:
 class TrainCfg:
     task: str = "moving_platform"
     seed: int = 0
-    device: str = "cpu"  # where the learner runs; physics always runs on the CPU
+    device: str = "cpu"  # where the learner runs, and the physics with env.backend=warp (cpu backend: the CPU)
     torch_threads: int = 0  # CPU threads of torch for the learner; 0 = torch's default (all cores)
     resume: str | None = None  # a checkpoint file or a run directory (its latest model_<N>.pt)
     # the task's env config, ENV_SCHEMAS[task]. Hydra composes it from the `env` group (typed: unknown keys

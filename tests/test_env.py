@@ -15,6 +15,7 @@ from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.domain_rand import nominal_intrinsics
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
+from lasmp.envs.robot import as_numpy
 from lasmp.robots import a1
 
 G = 9.81
@@ -78,12 +79,12 @@ def test_accelerometer_reads_plus_g_on_body_z_when_standing_still():
 
 def test_reset_places_robot_at_centre_with_random_yaw_feet_touching_not_inside():
     env = make(16)
-    r = env.readout
+    r = as_numpy(env.readout)
     assert np.abs(r.p_body_p[:, :2]).max() < 1e-9
     yaws = r.phi_body_w[:, 2]
     assert yaws.std() > 0.5 and np.abs(yaws).max() <= math.pi
     # lowest point of every foot sphere: above the top surface by the clearance, never below it
-    feet_z = env.sim.site_xpos[:, env.index.foot_site, 2] - a1.FOOT_RADIUS_M
+    feet_z = env.sim.site_xpos[:, env.index.foot_site, 2].numpy() - a1.FOOT_RADIUS_M
     gap = feet_z.min(axis=1) - env.plf_top_m
     assert np.all(gap >= 0.0) and np.all(gap <= 0.002), gap
     assert np.allclose(r.q, a1.Q_NOMINAL_RAD)
@@ -111,12 +112,13 @@ def test_yawed_robot_sees_platform_velocity_in_its_own_frame():
     sim, ix = env.sim, env.index
     # set the platform moving along world x at 1 m/s and the robot yawed by 90 deg, at rest
     yaw = math.pi / 2
-    sim.qpos[0, ix.root_qpos + 3 : ix.root_qpos + 7] = [math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)]
+    quat = torch.tensor([math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)])
+    sim.qpos[0, ix.root_qpos + 3 : ix.root_qpos + 7] = quat
     sim.qvel[0, env.sim.model.joint("plf_x").dofadr[0]] = 1.0
-    sim.batch.forward()
+    sim.forward()
     from lasmp.envs.moving_platform.readout import read
 
-    r = read(sim, ix)
+    r = as_numpy(read(sim, ix))
     # world +x is the body's -y when the body faces world +y
     assert np.allclose(r.v_plf_b[0], [0.0, -1.0, 0.0], atol=1e-9), r.v_plf_b
     # the robot is at rest: it must speed up along body -y to move with the platform
@@ -129,7 +131,7 @@ def test_foot_contacts_match_contact_forces():
     env.reset()
     for _ in range(30):
         env.step(torch.zeros(4, 12))
-    r = env.readout
+    r = as_numpy(env.readout)
     assert r.foot_contact.all()
     f = r.f_feet_w
     # forces on the feet push up and carry the robot's weight
@@ -138,10 +140,10 @@ def test_foot_contacts_match_contact_forces():
     assert np.allclose(f[:, :, 2].sum(axis=1), total_mass * G, rtol=0.05)
     # lift the robot off: no contact, zero force
     env.sim.qpos[:, env.index.root_qpos + 2] += 0.3
-    env.sim.batch.forward()
+    env.sim.forward()
     from lasmp.envs.moving_platform.readout import read
 
-    r = read(env.sim, env.index)
+    r = as_numpy(read(env.sim, env.index))
     assert not r.foot_contact.any() and np.all(r.f_feet_w == 0.0)
 
 
@@ -151,7 +153,7 @@ def test_body_contact_terminates_and_is_not_a_time_out():
     env.reset()
     # put env 1's trunk on the surface: a body contact
     env.sim.qpos[1, env.index.root_qpos + 2] = env.plf_top_m + 0.05
-    env.sim.batch.forward()
+    env.sim.forward()
     _, rew, done, extras = env.step(torch.zeros(2, 12))
     assert done.tolist() == [False, True]
     assert not extras["time_outs"].any()
@@ -164,7 +166,7 @@ def test_falling_off_the_platform_terminates():
     static_platform(env)
     env.reset()
     env.sim.qpos[0, env.index.root_qpos] = 1.5  # trunk beyond the 1-m half width
-    env.sim.batch.forward()
+    env.sim.forward()
     _, _, done, extras = env.step(torch.zeros(2, 12))
     assert done[0] and not done[1]
     assert extras["log"]["Termination/fell"] >= 1
@@ -250,7 +252,8 @@ def test_batched_step_equals_a_serial_mj_step_loop():
     env = make(4)
     for _ in range(10):
         env.step(0.5 * torch.randn(4, 12))
-    env._apply_actions(0.5 * np.random.default_rng(0).standard_normal((4, 12)))  # ctrl and act set
+    actions = torch.from_numpy(0.5 * np.random.default_rng(0).standard_normal((4, 12)))  # float64
+    env._apply_actions(actions)  # ctrl and act set
     batch = env.sim.batch
     models = [batch.get_model(i) for i in range(4)]  # with each env's randomized parameters
     datas = [batch.get_data(i) for i in range(4)]  # state, controls and servo targets
@@ -258,8 +261,8 @@ def test_batched_step_equals_a_serial_mj_step_loop():
     for i in range(4):
         for _ in range(env.cfg.sim.decimation):
             mujoco.mj_step(models[i], datas[i])
-        assert np.array_equal(datas[i].qpos, env.sim.qpos[i]), i
-        assert np.array_equal(datas[i].qvel, env.sim.qvel[i]), i
+        assert np.array_equal(datas[i].qpos, env.sim.qpos[i].numpy()), i
+        assert np.array_equal(datas[i].qvel, env.sim.qvel[i].numpy()), i
 
 
 def test_diverging_env_is_terminated_reset_alone_and_no_nan_reaches_observations(tmp_path, monkeypatch):

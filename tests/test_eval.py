@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 from omegaconf import OmegaConf
 
 from lasmp.envs import trajectories as trj
@@ -162,10 +163,11 @@ def test_oracle_command_points_to_the_platform_centre_in_the_heading_frame():
     env.reset()
     ix = env.index
     yaw = math.pi / 2  # facing world +y
-    env.sim.qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = [math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)]
+    quat = torch.tensor([math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)])
+    env.sim.qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = quat
     env.sim.qpos[0, ix.root_qpos] = 0.5  # 0.5 m along world +x of the centre: the centre is on its left
     env.sim.qpos[1, ix.root_qpos] = 3.0  # far away: the command saturates
-    env.sim.batch.forward()
+    env.sim.forward()
     env.readout = read(env.sim, ix)
     cmd = oracle_command(env).numpy()
     assert np.allclose(cmd[0], [0.0, 0.5, 0.0], atol=1e-6)

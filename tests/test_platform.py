@@ -24,6 +24,7 @@ import torch
 
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
+from lasmp.envs.robot import as_numpy
 from lasmp.envs.scene import PLATFORM_JOINTS, POSE_TO_JOINT, platform_gains
 
 T_CHECK_S = 3.0  # horizon of every test
@@ -72,18 +73,19 @@ def _expected_plf_in_body(env: MovingPlatformEnv) -> tuple[np.ndarray, np.ndarra
     trunk origin, rotated into the trunk frame with MuJoCo's own quaternion conversion."""
     n, root = env.num_envs, env.index.root_qpos
     dofs = _plf_dofs(env)
-    q = env.sim.qpos[:, env.index.plf_qpos]  # x, y, z, yaw, pitch, roll
-    qd = env.sim.qvel[:, dofs]
+    qpos, qvel = env.sim.qpos.numpy(), env.sim.qvel.numpy()
+    q = qpos[:, env.index.plf_qpos.numpy()]  # x, y, z, yaw, pitch, roll
+    qd = qvel[:, dofs]
     yaw, pitch = q[:, 3], q[:, 4]
     ez = np.array([0.0, 0.0, 1.0])
     y_axis = np.stack([-np.sin(yaw), np.cos(yaw), np.zeros(n)], axis=1)  # Rz ey
     x_axis = np.stack([np.cos(yaw) * np.cos(pitch), np.sin(yaw) * np.cos(pitch), -np.sin(pitch)], axis=1)
     omega_w = qd[:, 3:4] * ez + qd[:, 4:5] * y_axis + qd[:, 5:6] * x_axis
-    lever = env.sim.qpos[:, root : root + 3] - q[:, :3]
+    lever = qpos[:, root : root + 3] - q[:, :3]
     v_w = qd[:, :3] + np.cross(omega_w, lever)
     r_wb = np.empty((n, 9))
     for i in range(n):
-        quat = env.sim.qpos[i, root + 3 : root + 7]
+        quat = qpos[i, root + 3 : root + 7]
         mujoco.mju_quat2Mat(r_wb[i], quat / np.linalg.norm(quat))
     r_wb = r_wb.reshape(n, 3, 3)
     return np.einsum("nji,nj->ni", r_wb, v_w), np.einsum("nji,nj->ni", r_wb, omega_w)
@@ -124,9 +126,10 @@ def test_tracking_error_of_generated_reference(kp_f, kd_f, bound_m, bound_rad):
     gains = platform_gains(env.cfg.platform)
     np.testing.assert_allclose(env.intrinsics.platform_kp_factor, kp_f)
     np.testing.assert_allclose(env.intrinsics.platform_kd_factor, kd_f)
-    gainprm = env.sim.expand("actuator_gainprm")
-    np.testing.assert_allclose(gainprm[:, env.plf_act_pos, 0], np.broadcast_to(gains.kp * kp_f, (n, 6)))
-    np.testing.assert_allclose(gainprm[:, env.plf_act_vel, 0], np.broadcast_to(gains.kd * kd_f, (n, 6)))
+    gainprm = env.sim.expand("actuator_gainprm").numpy()
+    plf_act_pos, plf_act_vel = env.plf_act_pos.numpy(), env.plf_act_vel.numpy()
+    np.testing.assert_allclose(gainprm[:, plf_act_pos, 0], np.broadcast_to(gains.kp * kp_f, (n, 6)))
+    np.testing.assert_allclose(gainprm[:, plf_act_vel, 0], np.broadcast_to(gains.kd * kd_f, (n, 6)))
 
     err_max = np.zeros(6)  # PLATFORM_JOINTS order: x, y, z, yaw, pitch, roll
     samples = 0
@@ -137,7 +140,7 @@ def test_tracking_error_of_generated_reference(kp_f, kd_f, bound_m, bound_rad):
         t = env.episode_length_buf.numpy() * env.dt_s
         live = t > 0
         ref = env.traj.evaluate(t)[0][:, POSE_TO_JOINT]
-        err = np.abs(env.sim.qpos[:, env.index.plf_qpos] - ref)[live]
+        err = np.abs(env.sim.qpos[:, env.index.plf_qpos].numpy() - ref)[live]
         samples += int(live.sum())
         err_max = np.maximum(err_max, err.max(axis=0, initial=0.0))
     trans, rot = err_max[:3].max(), err_max[3:].max()
@@ -170,13 +173,13 @@ def test_position_drive_is_the_filter_of_its_gains(kp_f, kd_f):
     env = _make_env(n, refs, platform={}, **cfg)  # the default (calibrated) platform
     assert not env.cfg.platform.velocity_feedforward
     gains = platform_gains(env.cfg.platform)
-    x_sim = [env.sim.qpos[:, env.index.plf_qpos[:3]].copy()]
+    x_sim = [env.sim.qpos[:, env.index.plf_qpos[:3]].numpy().copy()]
     a = torch.zeros(n, 12)
     steps = _steps(env, t_end)
     for _ in range(steps):
         env.step(a)
         assert env.episode_length_buf.min() > 0, "an env reset: the comparison needs whole episodes"
-        x_sim.append(env.sim.qpos[:, env.index.plf_qpos[:3]].copy())
+        x_sim.append(env.sim.qpos[:, env.index.plf_qpos[:3]].numpy().copy())
     x_sim = np.array(x_sim)  # (steps + 1, n, 3)
     t_fine = np.arange(0.0, t_end + 1e-9, env.cfg.sim.dt_s)
     t_pol = np.arange(steps + 1) * env.dt_s
@@ -212,10 +215,10 @@ def test_standing_robot_is_carried_along_x():
         _, _, done, _ = env.step(a)
         assert not done.any(), f"robot fell/reset at t = {k * env.dt_s:.2f} s while standing"
         if k >= k0:
-            trunk.append(env.sim.qpos[:, root : root + 3].copy())
-            plf.append(env.sim.qpos[:, env.index.plf_qpos[:3]].copy())
-            v_trunk.append(env.sim.qvel[:, root_v : root_v + 3].copy())  # world frame
-            p_rel.append(env.readout.p_body_p.copy())
+            trunk.append(env.sim.qpos[:, root : root + 3].numpy().copy())
+            plf.append(env.sim.qpos[:, env.index.plf_qpos[:3]].numpy().copy())
+            v_trunk.append(env.sim.qvel[:, root_v : root_v + 3].numpy().copy())  # world frame
+            p_rel.append(env.readout.p_body_p.numpy().copy())
     trunk, plf, v_trunk, p_rel = map(np.array, (trunk, plf, v_trunk, p_rel))
     dur = (k1 - k0) * env.dt_s
     v_trunk_fd = (trunk[-1] - trunk[0]) / dur
@@ -225,7 +228,7 @@ def test_standing_robot_is_carried_along_x():
         f"trunk/platform velocity ratio {np.round(ratio, 4)} (platform {np.round(v_plf_fd[:, 0], 4)} m/s), "
         f"per-step trunk vx in [{v_trunk[:, :, 0].min():.4f}, {v_trunk[:, :, 0].max():.4f}], "
         f"max |vy| {np.abs(v_trunk[:, :, 1]).max():.4f}, platform qvel x at step ends "
-        f"{env.sim.qvel[0, x_dof]:.4f}"
+        f"{env.sim.qvel[0, x_dof].item():.4f}"
     )
     print(msg)
     np.testing.assert_allclose(v_plf_fd[:, 0], v, rtol=0.01, err_msg=msg)  # the platform itself moves at v
@@ -248,7 +251,7 @@ def test_yawing_platform_readout_consistent_with_riding_robot():
     for k in range(1, k1 + 1):
         obs, _, done, _ = env.step(a)
         assert not done.any(), f"robot fell/reset at t = {k * env.dt_s:.2f} s while standing"
-        r = env.readout
+        r = as_numpy(env.readout)
         np.testing.assert_allclose(obs["alignment"].numpy(), r.u_aln, atol=1e-5)  # obs = readout
         v_exp, w_exp = _expected_plf_in_body(env)  # incl. omega x lever arm (~5 mm/s here)
         np.testing.assert_allclose(r.v_plf_b, v_exp, atol=1e-6, err_msg=f"t = {k * env.dt_s:.2f} s")
@@ -306,12 +309,12 @@ def test_static_platform_barely_disturbed_by_robot(cfg):
     for k in range(1, _steps(env, 8.0) + 1):  # the 1 rad/s default settles (2 %) in ~6 s
         _, _, done, _ = env.step(a)
         assert not done.any(), f"robot fell/reset at t = {k * env.dt_s:.2f} s on a static platform"
-        err = np.maximum(err, np.abs(env.sim.qpos[:, env.index.plf_qpos]).max(axis=0))
-    sag = -env.sim.qpos[:, env.index.plf_qpos[2]]
+        err = np.maximum(err, np.abs(env.sim.qpos[:, env.index.plf_qpos].numpy()).max(axis=0))
+    sag = -env.sim.qpos[:, env.index.plf_qpos[2]].numpy()
     # static sag = robot weight / kp_z (the platform is gravity-compensated)
     m = env.sim.model
-    robot_mass = env.sim.expand("body_mass")[:, 1:].sum(axis=1) - env.cfg.platform.mass_kg
-    kp_z = env.sim.expand("actuator_gainprm")[:, env.plf_act_pos[2], 0]
+    robot_mass = env.sim.expand("body_mass").numpy()[:, 1:].sum(axis=1) - env.cfg.platform.mass_kg
+    kp_z = env.sim.expand("actuator_gainprm").numpy()[:, int(env.plf_act_pos[2]), 0]
     sag_expected = robot_mass * -m.opt.gravity[2] / kp_z
     msg = (
         f"max |x,y,z| = {np.round(err[:3] * 1e3, 4)} mm, max |yaw,pitch,roll| = "
@@ -333,7 +336,7 @@ def test_platform_velocity_in_yawed_body_frame():
     env = _make_env(n, _ramp_refs(n, 0, v), seed=0, domain_rand={"enabled": False})
     root = env.index.root_qpos
     dofs = _plf_dofs(env)
-    yaw0 = _quat_yaw(env.sim.qpos[:, root + 3 : root + 7].copy())
+    yaw0 = _quat_yaw(env.sim.qpos[:, root + 3 : root + 7].numpy().copy())
     quadrants = np.unique(np.floor((yaw0 + np.pi) / (np.pi / 2)).astype(int))
     assert len(quadrants) == 4, f"the seed must give start yaws in all four quadrants, got {yaw0}"
     a = torch.zeros(n, 12)
@@ -344,10 +347,10 @@ def test_platform_velocity_in_yawed_body_frame():
         assert not done.any(), f"robot fell/reset at t = {k * env.dt_s:.2f} s while standing"
         if k < k0:
             continue
-        v_plf_b = env.readout.v_plf_b
-        quat = env.sim.qpos[:, root + 3 : root + 7].copy()
+        v_plf_b = env.readout.v_plf_b.numpy()
+        quat = env.sim.qpos[:, root + 3 : root + 7].numpy().copy()
         yaw = _quat_yaw(quat)
-        vx = env.sim.qvel[:, dofs[0]]  # the platform's own x velocity (world x)
+        vx = env.sim.qvel[:, dofs[0]].numpy()  # the platform's own x velocity (world x)
         # yaw-only frame: R_wb^T [v, 0, 0] = [v cos(yaw), -v sin(yaw), 0] for a level trunk
         expect = np.stack([vx * np.cos(yaw), -vx * np.sin(yaw)], axis=1)
         err_yaw = max(err_yaw, float(np.abs(v_plf_b[:, :2] - expect).max()))

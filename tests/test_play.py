@@ -298,13 +298,15 @@ def _place(env, plf_pose, above_m: float = 0.45) -> None:
 
     ix = env.index
     qpos = env.sim.qpos
-    qpos[0, ix.plf_qpos] = plf_pose
+    qpos[0, ix.plf_qpos] = torch.tensor(plf_pose, dtype=qpos.dtype)
     data = mujoco.MjData(env.sim.model)
-    data.qpos[:] = qpos[0]
+    data.qpos[:] = qpos[0].numpy()
     mujoco.mj_kinematics(env.sim.model, data)
     plf = env.sim.model.body("platform").id
-    qpos[0, ix.root_qpos : ix.root_qpos + 3] = data.xpos[plf] + data.xmat[plf].reshape(3, 3) @ [0, 0, above_m]
-    qpos[0, ix.root_qpos + 3 : ix.root_qpos + 7] = data.xquat[plf]
+    qpos[0, ix.root_qpos : ix.root_qpos + 3] = torch.from_numpy(
+        data.xpos[plf] + data.xmat[plf].reshape(3, 3) @ [0, 0, above_m]
+    )
+    qpos[0, ix.root_qpos + 3 : ix.root_qpos + 7] = torch.from_numpy(data.xquat[plf].copy())
 
 
 def test_rendered_frame_shows_a_world_not_a_void(plain_env, gl):

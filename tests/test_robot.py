@@ -16,6 +16,7 @@ from lasmp.envs.robot import OBS_DIM, proprioception, read_robot, screen_faults
 from lasmp.envs.rough_static import env as rough_static_env
 from lasmp.envs.rough_static.env import RoughStaticEnv
 from lasmp.modules.obs_groups import GYRO_Z_COL
+from lasmp.robots import a1
 
 MAX_JOINT_VEL_RAD_S = 100.0
 
@@ -61,8 +62,8 @@ def test_both_tasks_observe_the_robot_with_the_same_proprioception(envs):
     for env in envs:
         obs, _, _, _ = env.step(torch.rand(env.num_envs, 12, generator=gen) - 0.5)
         r = read_robot(env.sim, env.index)
-        o = proprioception(r, env.action)
+        o = proprioception(r, env.action, torch.tensor(a1.Q_NOMINAL_RAD, dtype=env.dtype)).numpy()
         assert o.shape == (env.num_envs, OBS_DIM)
-        np.testing.assert_array_equal(o[:, GYRO_Z_COL], r.gyro_b[:, 2])  # the column the actor reads
+        np.testing.assert_array_equal(o[:, GYRO_Z_COL], r.gyro_b[:, 2].numpy())  # the column the actor reads
         clip = env.cfg.observations.clip
         np.testing.assert_array_equal(obs["policy"].numpy(), np.clip(o, -clip, clip).astype(np.float32))

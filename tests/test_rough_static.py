@@ -51,17 +51,17 @@ def test_robot_spawns_above_the_terrain_touching_nothing():
     m = env.sim.model
     terrain = m.geom(HFIELD_NAME).id
     data = mujoco.MjData(m)
-    x = env.sim.qpos[:, env.index.root_qpos : env.index.root_qpos + 2]
+    x = env.sim.qpos[:, env.index.root_qpos : env.index.root_qpos + 2].numpy()
     half = np.array([env.terrain.half_x_m, env.terrain.half_y_m]) - env.cfg.terrain.spawn_margin_m
     assert np.all(np.abs(x) <= half)
     for i in range(env.num_envs):
-        data.qpos[:] = env.sim.qpos[i]
+        data.qpos[:] = env.sim.qpos[i].numpy()
         mujoco.mj_forward(m, data)
         for c in data.contact[: data.ncon]:
             assert terrain in (c.geom1, c.geom2)
             assert c.dist >= -1e-9, f"env {i}: geom {m.geom(c.geom1).name}/{m.geom(c.geom2).name} inside"
         feet = np.array([data.site_xpos[m.site(f).id] for f in a1.FOOT_NAMES])
-        ground = env.terrain.height_at(feet[:, :2])
+        ground = env.terrain.height_at(torch.from_numpy(feet[:, :2])).numpy()
         gap = feet[:, 2] - a1.FOOT_RADIUS_M - ground
         assert np.all(gap >= -1e-6) and gap.min() < 0.15  # above the ground, and not dropped from high
     assert not read_robot(env.sim, env.index).body_collision.any()
@@ -80,19 +80,20 @@ def test_standing_still_on_rough_ground_mostly_survives_2_s():
 def test_push_adds_the_requested_horizontal_velocity():
     env = make(4, seed=1)
     ids = np.array([0, 2])
-    before = env.sim.qvel[:, env.index.root_qvel : env.index.root_qvel + 6].copy()
-    dv = env.push(ids)
-    after = env.sim.qvel[:, env.index.root_qvel : env.index.root_qvel + 6]
+    before = env.sim.qvel[:, env.index.root_qvel : env.index.root_qvel + 6].numpy().copy()
+    dv = env.push(torch.from_numpy(ids)).numpy()
+    after = env.sim.qvel[:, env.index.root_qvel : env.index.root_qvel + 6].numpy()
     assert np.allclose(after[ids, :2] - before[ids, :2], dv)
     assert np.all(np.linalg.norm(dv, axis=1) <= env.cfg.pushes.max_mps)
     assert np.allclose(after[ids, 2:], before[ids, 2:]) and np.allclose(after[[1, 3]], before[[1, 3]])
     lo, hi = env.cfg.pushes.interval_s
-    assert np.all((env.push_time_left_s[ids] >= lo) & (env.push_time_left_s[ids] <= hi))
+    push_time_left_s = env.push_time_left_s.numpy()
+    assert np.all((push_time_left_s[ids] >= lo) & (push_time_left_s[ids] <= hi))
     # on schedule: a due env is pushed at the start of the step, the others are not
-    env.push_time_left_s[:] = [5.0, 0.0, 5.0, 5.0]
+    env.push_time_left_s[:] = torch.tensor([5.0, 0.0, 5.0, 5.0])
     env.step(zeros(env))
     assert env.pushed.tolist() == [False, True, False, False]
-    assert np.linalg.norm(env.push_dv_mps[1]) > 0
+    assert np.linalg.norm(env.push_dv_mps[1].numpy()) > 0
 
 
 def test_commands_are_resampled_on_schedule_and_a_fifth_are_zero():
@@ -100,11 +101,11 @@ def test_commands_are_resampled_on_schedule_and_a_fifth_are_zero():
         4, seed=0, commands={"resample_s": 0.1, "zero_command_fraction": 0.0}, pushes={"enabled": False}
     )
     changed = []
-    prev = env.command.copy()
+    prev = env.command.numpy().copy()
     for _ in range(12):
         env.step(zeros(env))
-        changed.append(bool(np.all(env.command != prev)))
-        prev = env.command.copy()
+        changed.append(bool(np.all(env.command.numpy() != prev)))
+        prev = env.command.numpy().copy()
     assert [i + 1 for i, c in enumerate(changed) if c] == [5, 10]
     cmd = make(1).sample_commands(20000)
     zero = np.all(cmd == 0, axis=1)
@@ -179,10 +180,10 @@ def test_reward_terms_have_the_right_signs():
 def test_body_contact_terminates_and_time_out_is_a_truncation():
     env = make(2, seed=3, pushes={"enabled": False}, domain_rand={"enabled": False})
     q = env.sim.qpos
-    ground = env.terrain.max_height_near(q[:1, :2], 0.3)[0]
+    ground = env.terrain.max_height_near(q[:1, :2].numpy(), 0.3)[0]
     q[0, env.index.root_qpos + 2] = ground + 0.045  # upside down, trunk on (slightly in) the ground
-    q[0, env.index.root_qpos + 3 : env.index.root_qpos + 7] = [0.0, 1.0, 0.0, 0.0]
-    env.sim.batch.forward(np.array([0]))
+    q[0, env.index.root_qpos + 3 : env.index.root_qpos + 7] = torch.tensor([0.0, 1.0, 0.0, 0.0])
+    env.sim.forward(torch.tensor([0]))
     _, _, done, extras = env.step(zeros(env))
     assert done.tolist() == [True, False] and not extras["time_outs"].any()
     assert extras["log"]["Termination/body_contact"] >= 1 and "Episode_Reward/body_contact" in extras["log"]

@@ -423,3 +423,35 @@ def test_cli_plot_and_generate(tmp_path):
     ref = T.sample(20, T.TRAIN_RANGES, np.random.default_rng(5))
     np.testing.assert_array_equal(loaded.coeffs, ref.coeffs)
     assert loaded.meta == {"split": "train", "seed": 5, "num": 20}
+
+
+def test_device_copy_evaluates_as_the_host_set_and_takes_new_rows():
+    """DevicePoly (what the env's step evaluates) gives the host PiecewisePoly's pose and velocity,
+    bit for bit, before and after rows of other shapes (more segments, another degree) replace some."""
+    import torch
+
+    from lasmp.envs.trajectories.device import DevicePoly
+
+    rng = np.random.default_rng(0)
+    ranges = T.ranges_for_split("train")
+    host = T.sample(6, ranges, rng, n_waypoints=5)
+    dev = DevicePoly(host, "cpu", torch.float64)
+    t = np.concatenate([rng.uniform(0.0, 12.0, 18), [0.0, 10.0, 25.0]])  # inside, at the ends, past the end
+    rows = np.arange(len(t)) % 6
+
+    def check():
+        pos, vel, _ = host.evaluate(t, rows)
+        pos_d, vel_d = dev.evaluate(torch.from_numpy(t), torch.from_numpy(rows))
+        np.testing.assert_array_equal(pos_d.numpy(), pos)
+        np.testing.assert_array_equal(vel_d.numpy(), vel)
+
+    check()
+    longer = T.sample(2, ranges, rng, n_waypoints=15)  # more segments than the set holds
+    poses = 0.1 * rng.normal(size=(1, 40, 6))
+    poses[:, 0] = 0.0  # a trajectory starts at the platform's initial pose
+    user = T.from_samples(np.linspace(0.0, 10.0, 40), poses)  # cubic: lower degree
+    for ids, new in (([1, 4], longer), ([2], user)):
+        host.replace_rows(np.array(ids), new)
+        dev.replace_rows(torch.tensor(ids), new)
+        check()
+    assert dev.coeffs.shape[1] == host.coeffs.shape[1] > 5

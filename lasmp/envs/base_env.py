@@ -1,6 +1,6 @@
 """The shared step loop of every lasmp task, on rsl_rl's `VecEnv` contract.
 
-`step(actions)` = check actions -> `_apply_actions` -> physics (`CpuBatchSim.step`, decimation
+`step(actions)` = check actions -> `_apply_actions` -> physics (the backend's `step`, decimation
 substeps) -> `_evaluate` (rewards, terminations, time-outs, from the new state) -> reset the
 finished envs -> `_observations` (for reset envs: their first observation). Faulted envs
 (flagged by the physics: MuJoCo errors, warnings, non-finite state; or by the task's
@@ -11,6 +11,11 @@ it, so that no NaN ever reaches a policy.
 
 `extras["time_outs"]` flags episodes that ended at the time limit (a truncation, to be
 bootstrapped), `extras["log"]` holds per-episode reward terms and task metrics.
+
+Device: every per-step quantity is a torch tensor on the env's device (the physics backend's,
+`lasmp.envs.backends`); only the ids of the envs to reset and the logged numbers come to the
+host. Random draws at reset (trajectories, intrinsics, initial yaw) are made on the host with
+the env's numpy generator and sent to the device.
 """
 
 from __future__ import annotations
@@ -24,28 +29,22 @@ from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
 from lasmp.config import BaseEnvCfg
-from lasmp.envs.backends.cpu import CpuBatchSim
+from lasmp.envs.backends import make_backend
 from lasmp.envs.robot import OBS_DIM
 
 
-def to_tensor(x: np.ndarray, device) -> torch.Tensor:
-    """float32 torch tensor of a numpy array, on `device`."""
-    return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32)).to(device)
-
-
 class BaseEnv(VecEnv):
-    def __init__(
-        self, cfg: BaseEnvCfg, sim: CpuBatchSim, num_actions: int, max_episode_length: int, device="cpu"
-    ):
+    def __init__(self, cfg: BaseEnvCfg, model, num_actions: int, max_episode_length: int, device="cpu"):
         self.cfg = cfg
-        self.sim = sim
+        self.sim = make_backend(cfg.backend, model, cfg.num_envs, cfg.sim, device)
         self.num_envs = cfg.num_envs
         self.num_actions = num_actions
         self.max_episode_length = max_episode_length
         self.device = torch.device(device)
+        self.dtype = self.sim.dtype  # of the physics quantities (float64 on the CPU backend)
         self.dt_s = cfg.sim.dt_s * cfg.sim.decimation
         self.rng = np.random.default_rng(cfg.seed)
-        self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long)
+        self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
         self.fault_count = 0  # faulted envs since construction
         self._obs: TensorDict | None = None
         self.nonfinite_obs_values = 0
@@ -53,10 +52,10 @@ class BaseEnv(VecEnv):
         self.history = torch.zeros(
             self.num_envs, cfg.observations.history_length, OBS_DIM, device=self.device
         )
-        self._fresh: np.ndarray | None = None
-        # evaluation hook: when set, only these envs' physics advance (the idle envs at the tail of an
-        # evaluation); the others keep their state, and their outputs are to be ignored
-        self.stepped_envs: np.ndarray | None = None
+        self._fresh: torch.Tensor | None = None  # ids of the envs reset since the last observation
+        # evaluation hook: when set (a long tensor of env ids), only these envs' physics advance (the
+        # idle envs at the tail of an evaluation); the others keep their state, their outputs are ignored
+        self.stepped_envs: torch.Tensor | None = None
 
     # what a checkpoint carries for an exact resume, besides the physics: the per-env buffers the step
     # loop reads (a task lists its own in TASK_STATE)
@@ -92,19 +91,25 @@ class BaseEnv(VecEnv):
     def _load_task_state(self, d: dict) -> None:
         pass
 
+    def tensor(self, x) -> torch.Tensor:
+        """A host array (or number) as a new tensor of the physics dtype on the env's device (a copy:
+        never a view of the host memory)."""
+        return torch.tensor(np.asarray(x), dtype=self.dtype, device=self.device)
+
     # -- the task fills these ----------------------------------------------------------------
     @abstractmethod
-    def _apply_actions(self, actions: np.ndarray) -> None:
-        """Write controls for the coming policy step (actions: (n, num_actions) float64, clipped)."""
+    def _apply_actions(self, actions: torch.Tensor) -> None:
+        """Write controls for the coming policy step (actions: (n, num_actions), physics dtype, clipped)."""
 
     @abstractmethod
-    def _evaluate(self) -> tuple[torch.Tensor, np.ndarray, np.ndarray, dict]:
+    def _evaluate(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, dict]:
         """After physics: (reward (n,), terminated (n,) bool, faulted (n,) bool, log dict): the envs
         the task finds diverged, on top of those the physics flagged; all faulted envs are terminated."""
 
     @abstractmethod
-    def _reset_envs(self, ids: np.ndarray, terminated: np.ndarray, timed_out: np.ndarray) -> dict:
-        """Reset envs `ids` (with why their episodes ended); return log entries of the finished episodes."""
+    def _reset_envs(self, ids: torch.Tensor, terminated: torch.Tensor, timed_out: torch.Tensor) -> dict:
+        """Reset envs `ids` (long tensor; with why their episodes ended); return log entries of the
+        finished episodes."""
 
     @abstractmethod
     def _observations(self) -> TensorDict:
@@ -113,8 +118,8 @@ class BaseEnv(VecEnv):
 
     # -- the contract --------------------------------------------------------------------------
     def reset(self) -> tuple[TensorDict, dict]:
-        ids = np.arange(self.num_envs)
-        none = np.zeros(self.num_envs, dtype=bool)
+        ids = torch.arange(self.num_envs, device=self.device)
+        none = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         self._reset_envs(ids, none, none)
         self.episode_length_buf.zero_()
         self._obs = self._guarded_observations({})
@@ -130,56 +135,56 @@ class BaseEnv(VecEnv):
             raise ValueError(
                 f"actions must have shape {(self.num_envs, self.num_actions)}, got {tuple(actions.shape)}"
             )
-        a = actions.detach().to("cpu", torch.float64).numpy()
-        if not np.isfinite(a).all():
-            bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
+        a = actions.detach().to(self.device, self.dtype)
+        if not torch.isfinite(a).all():
+            bad = torch.nonzero(~torch.isfinite(a).all(dim=1)).flatten()
             raise ValueError(f"actions contain NaN/inf in envs {bad[:10].tolist()}: the policy diverged")
         clip = self.cfg.control.action_clip
-        self._apply_actions(np.clip(a, -clip, clip))
+        self._apply_actions(torch.clamp(a, -clip, clip))
         sim_faulted = self.sim.step(self.cfg.sim.decimation, self.stepped_envs)
         self.episode_length_buf += 1
         reward, terminated, task_faulted, log = self._evaluate()
         faulted = sim_faulted | task_faulted
-        reward[torch.from_numpy(faulted)] = 0.0
+        reward = reward.masked_fill(faulted, 0.0)
         terminated = terminated | faulted
-        timed_out = (self.episode_length_buf.numpy() >= self.max_episode_length) & ~terminated
+        timed_out = (self.episode_length_buf >= self.max_episode_length) & ~terminated
         done = terminated | timed_out
-        ids = np.flatnonzero(done)
-        self.fault_count += int(faulted.sum())
-        log["/faults/count"] = float(faulted.sum())
+        ids = torch.nonzero(done).flatten()
+        n_faulted = int(faulted.sum())
+        self.fault_count += n_faulted
+        log["/faults/count"] = float(n_faulted)
         if len(ids):
             log.update(self._reset_envs(ids, terminated[ids], timed_out[ids]))
-            self.episode_length_buf[torch.from_numpy(ids)] = 0
+            self.episode_length_buf[ids] = 0
         self._obs = self._guarded_observations(log)
-        extras = {"time_outs": torch.from_numpy(timed_out).to(self.device), "log": log}
-        return self._obs, reward.to(self.device), torch.from_numpy(done).to(self.device), extras
+        return self._obs, reward, done, {"time_outs": timed_out, "log": log}
 
-    def _finished_episode_log(self, done: np.ndarray) -> dict:
+    def _finished_episode_log(self, done: torch.Tensor) -> dict:
         """Per-term reward sums (`self.rewards`, a RewardManager) and mean length of the episodes of
         envs `done`, which end now; their reward sums are zeroed."""
-        log = {f"Episode_Reward/{k}": v for k, v in self.rewards.reset(torch.from_numpy(done)).items()}
-        log["Episode/length_s"] = (
-            float(self.episode_length_buf[torch.from_numpy(done)].float().mean()) * self.dt_s
-        )
+        log = {f"Episode_Reward/{k}": v for k, v in self.rewards.reset(done).items()}
+        log["Episode/length_s"] = float(self.episode_length_buf[done].float().mean()) * self.dt_s
         return log
 
-    def _package_observations(self, o: np.ndarray, groups: dict[str, np.ndarray]) -> TensorDict:
-        """The TensorDict of `policy` (o), `history` and the other groups: non-finite values replaced
-        by 0 and counted (`nonfinite_obs_values`), every value clipped to +-observations.clip."""
+    def _package_observations(self, o: torch.Tensor, groups: dict[str, torch.Tensor]) -> TensorDict:
+        """The TensorDict of `policy` (o), `history` and the other groups, float32: non-finite values
+        replaced by 0 and counted (`nonfinite_obs_values`), every value clipped to +-observations.clip."""
         arrays = {"policy": o, **groups}
-        bad = sum(int(a.size - np.count_nonzero(np.isfinite(a))) for a in arrays.values())
+        # fast path, one host sync: a sum is finite when every value is (or so huge that it overflows:
+        # then the exact count below says 0)
+        sums = torch.stack([a.sum() for a in arrays.values()])
+        bad = 0 if bool(torch.isfinite(sums).all()) else int(sum((~torch.isfinite(a)).sum() for a in arrays.values()))
         self.nonfinite_obs_values = bad
         clip = self.cfg.observations.clip
         tensors = {}
         for key, value in arrays.items():
             if bad:
-                value = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
-            tensors[key] = to_tensor(np.clip(value, -clip, clip), self.device)
+                value = torch.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
+            tensors[key] = torch.clamp(value, -clip, clip).to(torch.float32)
         o_t = tensors["policy"]
         history = self.history
         if self._fresh is not None:
-            fresh = torch.from_numpy(self._fresh)
-            history[fresh] = o_t[fresh].unsqueeze(1)
+            history[self._fresh] = o_t[self._fresh].unsqueeze(1)
             self._fresh = None
         # the next step's history starts with this o (a new tensor: the one handed out stays as is)
         self.history = torch.cat([o_t.unsqueeze(1), history[:, :-1]], dim=1)

@@ -12,7 +12,8 @@ the platform's quantities). The scene holds the A1 of `lasmp.robots.a1` with its
 sensors `imu_acc`, `imu_gyro`, `<leg>_foot_contact` (found + net force, world frame) and
 `<body>_collision` (found) for every body of `a1.NON_FOOT_COLLISION_GEOMS`.
 
-numpy float64, (num_envs, ...). Frames: `w` world, `b` trunk (origin at the trunk link origin,
+torch tensors on the backend's device and dtype (float64 on the CPU backend), (num_envs, ...).
+Frames: `w` world, `b` trunk (origin at the trunk link origin,
 the IMU site; x forward, y left, z up). We put b at the link origin rather than at the randomized
 CoM so that its velocities are what an IMU on the real trunk measures.
 """
@@ -25,8 +26,8 @@ from typing import TypeVar
 
 import mujoco
 import numpy as np
+import torch
 
-from lasmp.envs.backends.cpu import CpuBatchSim
 from lasmp.envs.rotations import euler_zyx_from_mat, quat_to_mat, rotate_inv
 from lasmp.robots import a1
 
@@ -39,91 +40,106 @@ def sensor_columns(model: mujoco.MjModel, name: str) -> slice:
     return slice(int(s.adr[0]), int(s.adr[0] + s.dim[0]))
 
 
-class RobotIndex:
-    """Addresses of the A1's state, actuators and sensors in a scene's model (computed once)."""
+def sensor_index(model: mujoco.MjModel, names, device) -> torch.Tensor:
+    """(len(names), dim): the sensordata columns of each sensor (all of one dimension), on `device`."""
+    cols = [np.arange(c.start, c.stop) for c in (sensor_columns(model, name) for name in names)]
+    return torch.as_tensor(np.stack(cols), device=device)
 
-    def __init__(self, model: mujoco.MjModel):
+
+class RobotIndex:
+    """Addresses of the A1's state, actuators and sensors in a scene's model (computed once), as
+    index tensors on `device` (gathers then stay on the device)."""
+
+    def __init__(self, model: mujoco.MjModel, device: torch.device | str = "cpu"):
+        def ix(values) -> torch.Tensor:
+            return torch.as_tensor(np.asarray(values, dtype=np.int64), device=device)
+
         root = model.joint(a1.ROOT_JOINT_NAME)
         self.root_qpos = int(root.qposadr[0])  # free joint: position (3), then quaternion (w, x, y, z)
         self.root_qvel = int(root.dofadr[0])  # free joint: linear velocity (3, in w), angular (3, in b)
-        self.joint_qpos = np.array([model.joint(j).qposadr[0] for j in a1.JOINT_NAMES])
-        self.joint_qvel = np.array([model.joint(j).dofadr[0] for j in a1.JOINT_NAMES])
-        self.joint_act = np.array([model.actuator(j).id for j in a1.JOINT_NAMES])
+        self.joint_qpos = ix([model.joint(j).qposadr[0] for j in a1.JOINT_NAMES])
+        self.joint_qvel = ix([model.joint(j).dofadr[0] for j in a1.JOINT_NAMES])
+        self.joint_act = ix([model.actuator(j).id for j in a1.JOINT_NAMES])
         self.acc = sensor_columns(model, "imu_acc")
         self.gyro = sensor_columns(model, "imu_gyro")
-        self.foot_contact = [sensor_columns(model, f"{leg}_foot_contact") for leg in a1.LEG_NAMES]
-        self.collision = np.array(
-            [model.sensor(f"{b}_collision").adr[0] for b in a1.NON_FOOT_COLLISION_GEOMS]
-        )
-        self.foot_site = np.array([model.site(f).id for f in a1.FOOT_NAMES])
+        # (4, 4): per leg, the columns [found, force x, y, z] of its contact sensor
+        self.foot_contact = sensor_index(model, [f"{leg}_foot_contact" for leg in a1.LEG_NAMES], device)
+        self.collision = ix([model.sensor(f"{b}_collision").adr[0] for b in a1.NON_FOOT_COLLISION_GEOMS])
+        self.foot_site = ix([model.site(f).id for f in a1.FOOT_NAMES])
 
 
 @dataclass
 class RobotReadout:
-    p_body_w: np.ndarray  # (n, 3) trunk origin, m
-    r_wb: np.ndarray  # (n, 3, 3) trunk orientation
-    phi_body_w: np.ndarray  # (n, 3) roll, pitch, yaw (ZYX), rad
-    gravity_b: np.ndarray  # (n, 3) unit gravity direction, body frame
-    v_body_b: np.ndarray  # (n, 3) m/s
-    omega_body_b: np.ndarray  # (n, 3) rad/s, true (the gyro reads the same, noise-free)
-    acc_imu_b: np.ndarray  # (n, 3) accelerometer (specific force), m/s^2: +g on body z at rest
-    gyro_b: np.ndarray  # (n, 3) rad/s
-    q: np.ndarray  # (n, 12) rad
-    q_dot: np.ndarray  # (n, 12) rad/s
-    tau: np.ndarray  # (n, 12) N·m
-    foot_contact: np.ndarray  # (n, 4) bool
-    f_feet_w: np.ndarray  # (n, 4, 3) contact force ON each foot, world frame, N
-    body_collision: np.ndarray  # (n,) bool, a trunk/hip/thigh/calf geom touches anything
+    p_body_w: torch.Tensor  # (n, 3) trunk origin, m
+    r_wb: torch.Tensor  # (n, 3, 3) trunk orientation
+    phi_body_w: torch.Tensor  # (n, 3) roll, pitch, yaw (ZYX), rad
+    gravity_b: torch.Tensor  # (n, 3) unit gravity direction, body frame
+    v_body_b: torch.Tensor  # (n, 3) m/s
+    omega_body_b: torch.Tensor  # (n, 3) rad/s, true (the gyro reads the same, noise-free)
+    acc_imu_b: torch.Tensor  # (n, 3) accelerometer (specific force), m/s^2: +g on body z at rest
+    gyro_b: torch.Tensor  # (n, 3) rad/s
+    q: torch.Tensor  # (n, 12) rad
+    q_dot: torch.Tensor  # (n, 12) rad/s
+    tau: torch.Tensor  # (n, 12) N·m
+    foot_contact: torch.Tensor  # (n, 4) bool
+    f_feet_w: torch.Tensor  # (n, 4, 3) contact force ON each foot, world frame, N
+    body_collision: torch.Tensor  # (n,) bool, a trunk/hip/thigh/calf geom touches anything
 
 
 AnyReadout = TypeVar("AnyReadout", bound=RobotReadout)  # a task's readout extends the robot's
 
 
-def read_robot(sim: CpuBatchSim, ix: RobotIndex, rows: np.ndarray | None = None) -> RobotReadout:
-    """The robot's quantities in all envs, or in envs `rows` only (in that order); arrays of their own."""
+def read_robot(sim, ix: RobotIndex, rows: torch.Tensor | None = None) -> RobotReadout:
+    """The robot's quantities in all envs, or in envs `rows` only (in that order); tensors of their
+    own (never views of the backend's state)."""
     qpos, qvel, sd, actuator_force = sim.qpos, sim.qvel, sim.sensordata, sim.actuator_force
     if rows is not None:
         qpos, qvel, sd, actuator_force = (x[rows] for x in (qpos, qvel, sd, actuator_force))
     quat = qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7]
-    r_wb = quat_to_mat(quat / np.linalg.norm(quat, axis=1, keepdims=True))
-    contact = np.stack([sd[:, s] for s in ix.foot_contact], axis=1)  # (n, 4, 4): found, force (3)
+    r_wb = quat_to_mat(quat / torch.linalg.vector_norm(quat, dim=1, keepdim=True))
+    contact = sd[:, ix.foot_contact]  # (n, 4, 4): found, force (3)
     foot_contact = contact[:, :, 0] > 0
     return RobotReadout(
-        p_body_w=qpos[:, ix.root_qpos : ix.root_qpos + 3].copy(),
+        p_body_w=qpos[:, ix.root_qpos : ix.root_qpos + 3].clone(),
         r_wb=r_wb,
         phi_body_w=euler_zyx_from_mat(r_wb),
         gravity_b=-r_wb[:, 2, :],  # world -z in the body frame: R^T (0, 0, -1)
         v_body_b=rotate_inv(r_wb, qvel[:, ix.root_qvel : ix.root_qvel + 3]),
-        omega_body_b=qvel[:, ix.root_qvel + 3 : ix.root_qvel + 6].copy(),
-        acc_imu_b=sd[:, ix.acc].copy(),
-        gyro_b=sd[:, ix.gyro].copy(),
+        omega_body_b=qvel[:, ix.root_qvel + 3 : ix.root_qvel + 6].clone(),
+        acc_imu_b=sd[:, ix.acc].clone(),
+        gyro_b=sd[:, ix.gyro].clone(),
         q=qpos[:, ix.joint_qpos],
         q_dot=qvel[:, ix.joint_qvel],
-        tau=actuator_force[:, ix.joint_act].copy(),
+        tau=actuator_force[:, ix.joint_act],
         foot_contact=foot_contact,
         # the sensor reports the force of the foot on the other body; the force on the foot is its negative
         f_feet_w=-contact[:, :, 1:4] * foot_contact[:, :, None],
-        body_collision=(sd[:, ix.collision] > 0).any(axis=1),
+        body_collision=(sd[:, ix.collision] > 0).any(dim=1),
     )
 
 
-def update_rows(target, rows: np.ndarray, sub) -> None:
+def as_numpy(r: AnyReadout) -> AnyReadout:
+    """The same readout with host numpy arrays (for evaluation code that works on the host)."""
+    return dataclasses.replace(r, **{name: value.detach().cpu().numpy() for name, value in vars(r).items()})
+
+
+def update_rows(target, rows: torch.Tensor, sub) -> None:
     """In place: rows `rows` of every array field of dataclass `target` (a readout, intrinsics) take
     the values of `sub`, the same kind of dataclass holding those rows only."""
     for name, value in vars(sub).items():
         getattr(target, name)[rows] = value
 
 
-def proprioception(r: RobotReadout, last_action: np.ndarray) -> np.ndarray:
+def proprioception(r: RobotReadout, last_action: torch.Tensor, q_nominal: torch.Tensor) -> torch.Tensor:
     """o_t (n, OBS_DIM) = [acc_imu_b (3) m/s^2, gyro_b (3) rad/s, roll & pitch (2) rad,
     q - q_nominal (12) rad, q_dot (12) rad/s, a_{t-1} (12)]: what the real robot's sensors give.
     q is centred at the nominal stance (ours, as legged_gym)."""
-    return np.concatenate(
-        [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - a1.Q_NOMINAL_RAD, r.q_dot, last_action], axis=1
+    return torch.cat(
+        [r.acc_imu_b, r.gyro_b, r.phi_body_w[:, :2], r.q - q_nominal, r.q_dot, last_action], dim=1
     )
 
 
-def screen_faults(r: AnyReadout, max_joint_vel_rad_s: float) -> tuple[AnyReadout, np.ndarray]:
+def screen_faults(r: AnyReadout, max_joint_vel_rad_s: float) -> tuple[AnyReadout, torch.Tensor]:
     """(the readout, with every non-finite value replaced by 0 if it holds any; the (n,) mask of the
     envs it shows faulted: a non-finite value in any field, or a joint faster than
     max_joint_vel_rad_s, a simulation running away before its state turns non-finite).
@@ -131,12 +147,12 @@ def screen_faults(r: AnyReadout, max_joint_vel_rad_s: float) -> tuple[AnyReadout
     `r` may be a task's extension of `RobotReadout`; it is not modified (the clean one is a copy).
     The physics backend flags its own faults (MuJoCo errors, warnings); the caller combines both.
     """
-    faulted = (np.abs(r.q_dot) > max_joint_vel_rad_s).any(axis=1)
-    floats = {name: value for name, value in vars(r).items() if value.dtype.kind == "f"}
-    for value in floats.values():
-        faulted |= ~np.isfinite(value.reshape(len(value), -1)).all(axis=1)
+    floats = {name: value for name, value in vars(r).items() if value.is_floating_point()}
+    # one fused check: a non-finite value anywhere makes its row's sum non-finite
+    row_sums = torch.stack([value.reshape(len(value), -1).sum(dim=1) for value in floats.values()], dim=1)
+    faulted = ~torch.isfinite(row_sums).all(dim=1) | (torch.abs(r.q_dot) > max_joint_vel_rad_s).any(dim=1)
     if faulted.any():
-        zeroed = {name: np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0) for name, x in floats.items()}
+        zeroed = {name: torch.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0) for name, x in floats.items()}
         r = dataclasses.replace(r, **zeroed)
     return r, faulted
 
@@ -167,15 +183,17 @@ class RobotIntrinsics:
 
 
 class RobotIntrinsicsWriter:
-    """Writes the `RobotIntrinsics` of some envs into the batch's per-simulation model fields (a task
-    with actuators of its own extends it)."""
+    """Writes the `RobotIntrinsics` of some envs (host arrays, drawn at reset) into the backend's
+    per-env model fields (a task with actuators of its own extends it)."""
 
-    def __init__(self, sim: CpuBatchSim):
+    def __init__(self, sim):
         m = sim.model
-        self._trunk = m.body(a1.TRUNK_BODY_NAME).id
-        self._trunk_ipos0 = m.body_ipos[self._trunk].copy()
-        self._feet = np.array([m.geom(name).id for name in a1.FOOT_NAMES])
-        self._joint_act = np.array([m.actuator(name).id for name in a1.JOINT_NAMES])
+        self._sim = sim
+        trunk = m.body(a1.TRUNK_BODY_NAME).id
+        self._trunk = trunk
+        self._trunk_ipos0 = torch.as_tensor(m.body_ipos[trunk], dtype=sim.dtype, device=sim.device)
+        self._feet = torch.as_tensor([m.geom(name).id for name in a1.FOOT_NAMES], device=sim.device)
+        self._joint_act = torch.as_tensor([m.actuator(name).id for name in a1.JOINT_NAMES], device=sim.device)
         self._body_mass = sim.expand("body_mass")
         self._body_ipos = sim.expand("body_ipos")
         self._geom_friction = sim.expand("geom_friction")
@@ -183,12 +201,17 @@ class RobotIntrinsicsWriter:
         self._biasprm = sim.expand("actuator_biasprm")
         assert m.actuator_biastype[self._joint_act[0]] == mujoco.mjtBias.mjBIAS_AFFINE
 
-    def write(self, ids: np.ndarray, p: RobotIntrinsics) -> None:
-        ix = np.ix_(ids, self._joint_act)
-        self._body_mass[ids, self._trunk] = p.trunk_mass_kg
-        self._body_ipos[ids, self._trunk] = self._trunk_ipos0 + p.com_shift_m
-        self._geom_friction[np.ix_(ids, self._feet, [0])] = p.foot_friction[:, None, None]
+    def tensor(self, x: np.ndarray) -> torch.Tensor:
+        return torch.as_tensor(x, dtype=self._sim.dtype, device=self._sim.device)
+
+    def write(self, ids: torch.Tensor, p: RobotIntrinsics) -> None:
+        t = self.tensor
+        rows = ids[:, None]
+        self._body_mass[ids, self._trunk] = t(p.trunk_mass_kg)
+        self._body_ipos[ids, self._trunk] = self._trunk_ipos0 + t(p.com_shift_m)
+        self._geom_friction[rows, self._feet, 0] = t(p.foot_friction)[:, None]
         # MuJoCo position actuator: force = kp * ctrl - kp * q - kd * q_dot
-        self._gainprm[ix + (0,)] = p.joint_kp
-        self._biasprm[ix + (1,)] = -p.joint_kp
-        self._biasprm[ix + (2,)] = -p.joint_kd
+        kp, kd = t(p.joint_kp), t(p.joint_kd)
+        self._gainprm[rows, self._joint_act, 0] = kp
+        self._biasprm[rows, self._joint_act, 1] = -kp
+        self._biasprm[rows, self._joint_act, 2] = -kd

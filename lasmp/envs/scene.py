@@ -76,6 +76,7 @@ def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
     spec.option.timestep = sim.dt_s
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST  # stiff platform PD, implicit damping
     spec.option.iterations = sim.solver_iterations
+    spec.option.tolerance = sim.solver_tolerance
     spec.option.ls_iterations = max(5, sim.solver_iterations // 2)
     spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{sim.cone.upper()}")
     spec.option.impratio = sim.impratio

@@ -20,7 +20,6 @@ import dataclasses
 import sys
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from lasmp.algo.checkpoint import CheckpointError
@@ -113,12 +112,12 @@ def oracle_command(env) -> torch.Tensor:
     r = env.readout
     offset_w = r.p_plf_w[:, :2] - r.p_body_w[:, :2]
     yaw = r.phi_body_w[:, 2]
-    c, s = np.cos(yaw), np.sin(yaw)
-    offset_h = np.stack(
-        [c * offset_w[:, 0] + s * offset_w[:, 1], -s * offset_w[:, 0] + c * offset_w[:, 1]], axis=1
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    offset_h = torch.stack(
+        [c * offset_w[:, 0] + s * offset_w[:, 1], -s * offset_w[:, 0] + c * offset_w[:, 1]], dim=1
     )
-    v = np.clip(ORACLE_GAIN_PER_S * offset_h, -ORACLE_MAX_MPS, ORACLE_MAX_MPS)
-    return torch.from_numpy(np.concatenate([v, np.zeros((env.num_envs, 1))], axis=1).astype(np.float32))
+    v = torch.clamp(ORACLE_GAIN_PER_S * offset_h, -ORACLE_MAX_MPS, ORACLE_MAX_MPS)
+    return torch.cat([v, torch.zeros_like(v[:, :1])], dim=1).to(torch.float32)
 
 
 def _asdict(cfg) -> dict:

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from lasmp.envs.moving_platform.domain_rand import Intrinsics
+from lasmp.envs.robot import as_numpy
 from lasmp.eval.metrics import POSITION_FRAME, POSITION_FRAMES, EpisodeMetrics
 
 Controller = Callable[[object], torch.Tensor]  # observations (TensorDict) -> actions (n, 12)
@@ -75,13 +76,14 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
     captured: dict = {}
 
     def capture(readout, collision):
+        readout = as_numpy(readout)  # the metrics run on the host
         p_rel, r_pb = relative_pose(readout)
-        captured.update(p=readout.p_body_p.copy(), p_rel=p_rel.copy(), r=r_pb, tau=readout.tau.copy(),
-                        q_dot=readout.q_dot.copy(), collision=collision.copy())  # fmt: skip
+        captured.update(p=readout.p_body_p, p_rel=p_rel, r=r_pb, tau=readout.tau, q_dot=readout.q_dot,
+                        collision=collision.cpu().numpy())  # fmt: skip
 
     env.on_step = capture
     obs, _ = env.reset()
-    metrics.start(np.arange(env.num_envs), *relative_pose(env.readout))
+    metrics.start(np.arange(env.num_envs), *relative_pose(as_numpy(env.readout)))
     episodes = {key: np.full(num_episodes, np.nan) for key in ("collision", "steps", "height_violation_rate",
                                                                "position_deviation_m", "rotation_deviation_rad",
                                                                "power_w")}  # fmt: skip
@@ -93,7 +95,7 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
             ep_before = source.episode_of_env.copy()
             active = ep_before >= 0
             if shrink_tail and source.next_episode >= num_episodes:
-                env.stepped_envs = np.flatnonzero(active)
+                env.stepped_envs = torch.as_tensor(np.flatnonzero(active), device=env.device)
             if policy is not None:
                 x_true, x_hat = _accumulate_estimates(policy, obs, active, est)
                 if trace and ((ep_before >= 0) & (ep_before < env.num_envs)).any():
@@ -110,7 +112,7 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
                 done_count += len(ids)
             restarted = np.flatnonzero(done)
             if len(restarted):
-                p, r = relative_pose(env.readout)
+                p, r = relative_pose(as_numpy(env.readout))
                 metrics.start(restarted, p[restarted], r[restarted])
             now = time.perf_counter()
             if progress and (now - last_print > 2.0 or done_count == num_episodes):

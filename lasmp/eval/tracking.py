@@ -23,20 +23,20 @@ def record_platform(env, steps: int | None = None) -> dict[str, np.ndarray]:
     q = np.zeros((steps + 1, n, 6))
     ref = np.zeros((steps + 1, n, 6))
     live_mask = np.zeros((steps + 1, n), bool)
-    q[0] = env.sim.qpos[:, env.index.plf_qpos]
+    q[0] = env.sim.qpos[:, env.index.plf_qpos].cpu().numpy()
     live_mask[0] = True
     live = np.ones(n, bool)
     timed_out = np.zeros(n, bool)
     zeros = torch.zeros(n, env.num_actions)
     for k in range(1, steps + 1):
         _, _, done, extras = env.step(zeros)
-        done = done.numpy()
-        now = env.sim.qpos[:, env.index.plf_qpos]
+        done = done.cpu().numpy()
+        now = env.sim.qpos[:, env.index.plf_qpos].cpu().numpy()
         want = env.traj.evaluate(np.full(n, k * env.dt_s))[0][:, POSE_TO_JOINT]
         record = live & ~done  # the done step's state is already the reset one
         q[k] = np.where(record[:, None], now, q[k - 1])
         ref[k] = np.where(record[:, None], want, ref[k - 1])
         live_mask[k] = record
-        timed_out |= live & done & extras["time_outs"].numpy()
+        timed_out |= live & done & extras["time_outs"].cpu().numpy()
         live &= ~done
     return {"q": q, "ref": ref, "live": live_mask, "timed_out": timed_out}

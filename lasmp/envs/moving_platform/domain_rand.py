@@ -1,4 +1,5 @@
-"""Per-env intrinsic parameters (SPEC §6, Table B): drawn at reset, written into the Batch.
+"""Per-env intrinsic parameters (SPEC §6, Table B): drawn at reset on the host (numpy), written
+into the physics backend's per-env model fields.
 
 The robot's part (and the implicit privileged state x_imp it makes) is `lasmp.envs.robot`'s
 `RobotIntrinsics`; this task adds the platform's per-axis PD gain factors.
@@ -9,9 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import torch
 
 from lasmp.config import DomainRandRanges
-from lasmp.envs.backends.cpu import CpuBatchSim
 from lasmp.envs.robot import RobotIntrinsics, RobotIntrinsicsWriter
 from lasmp.envs.scene import PLATFORM_JOINTS, PlatformGains
 from lasmp.robots import a1
@@ -56,20 +57,20 @@ class IntrinsicsWriter(RobotIntrinsicsWriter):
     """Writes `Intrinsics` of some envs into the batch's per-simulation model fields: the robot's,
     then the platform's PD gains."""
 
-    def __init__(self, sim: CpuBatchSim, gains: PlatformGains):
+    def __init__(self, sim, gains: PlatformGains):
         super().__init__(sim)
         m = sim.model
         self._gains = gains
-        self._plf_pos_act = np.array([m.actuator(f"{j}_pos").id for j in PLATFORM_JOINTS])
-        self._plf_vel_act = np.array([m.actuator(f"{j}_vel").id for j in PLATFORM_JOINTS])
+        self._plf_pos_act = torch.as_tensor([m.actuator(f"{j}_pos").id for j in PLATFORM_JOINTS], device=sim.device)
+        self._plf_vel_act = torch.as_tensor([m.actuator(f"{j}_vel").id for j in PLATFORM_JOINTS], device=sim.device)
 
-    def write(self, ids: np.ndarray, p: Intrinsics) -> None:
+    def write(self, ids: torch.Tensor, p: Intrinsics) -> None:
         super().write(ids, p)
-        kp = self._gains.kp * p.platform_kp_factor
-        kd = self._gains.kd * p.platform_kd_factor
-        pos = np.ix_(ids, self._plf_pos_act)
-        self._gainprm[pos + (0,)] = kp
-        self._biasprm[pos + (1,)] = -kp
-        vel = np.ix_(ids, self._plf_vel_act)  # velocity actuator: force = kd * ctrl - kd * v
-        self._gainprm[vel + (0,)] = kd
-        self._biasprm[vel + (2,)] = -kd
+        kp = self.tensor(self._gains.kp * p.platform_kp_factor)
+        kd = self.tensor(self._gains.kd * p.platform_kd_factor)
+        rows = ids[:, None]
+        self._gainprm[rows, self._plf_pos_act, 0] = kp
+        self._biasprm[rows, self._plf_pos_act, 1] = -kp
+        # velocity actuator: force = kd * ctrl - kd * v
+        self._gainprm[rows, self._plf_vel_act, 0] = kd
+        self._biasprm[rows, self._plf_vel_act, 2] = -kd

@@ -20,8 +20,7 @@ from tensordict import TensorDict
 
 from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as trj
-from lasmp.envs.backends.cpu import CpuBatchSim
-from lasmp.envs.base_env import BaseEnv, to_tensor
+from lasmp.envs.base_env import BaseEnv
 from lasmp.envs.curriculum import WaypointCurriculum
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.domain_rand import (
@@ -36,6 +35,7 @@ from lasmp.envs.moving_platform.state import StepState
 from lasmp.envs.robot import proprioception, screen_faults, update_rows
 from lasmp.envs.rotations import yaw_quat
 from lasmp.envs.scene import PLATFORM_JOINTS, POSE_TO_JOINT, build_model, platform_gains, platform_top_z_m
+from lasmp.envs.trajectories.device import DevicePoly
 from lasmp.robots import a1
 
 
@@ -46,20 +46,24 @@ class MovingPlatformEnv(BaseEnv):
         else:
             cfg.validate()
         model = build_model(cfg.platform, cfg.sim)
-        sim = CpuBatchSim(model, cfg.num_envs, cfg.sim.num_threads)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
-        super().__init__(cfg, sim, 12, int(round(cfg.trajectory.duration_s / dt_s)), device)
-        n = self.num_envs
-        self.index = ReadoutIndex(model)
+        super().__init__(cfg, model, 12, int(round(cfg.trajectory.duration_s / dt_s)), device)
+        n, dev = self.num_envs, self.device
+        self.index = ReadoutIndex(model, dev)
         self.gains = platform_gains(cfg.platform)
-        self.writer = IntrinsicsWriter(sim, self.gains)
-        self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.platform.kd_factor_ref)
-        self.q_nominal = np.asarray(a1.Q_NOMINAL_RAD)
+        self.writer = IntrinsicsWriter(self.sim, self.gains)
+        self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.platform.kd_factor_ref)  # host copy
+        self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
+        self.q_nominal = self.tensor(a1.Q_NOMINAL_RAD)
         self.trunk_height_m = a1.nominal_trunk_height_m(model)
-        self.plf_act_pos = np.array([model.actuator(f"{j}_pos").id for j in PLATFORM_JOINTS])
-        self.plf_act_vel = np.array([model.actuator(f"{j}_vel").id for j in PLATFORM_JOINTS])
-        self.plf_act_adr = model.actuator_actadr[self.plf_act_pos]  # servo targets in `act`
+        plf_act_pos = np.array([model.actuator(f"{j}_pos").id for j in PLATFORM_JOINTS])
+        self.plf_act_pos = torch.as_tensor(plf_act_pos, device=dev)
+        self.plf_act_vel = torch.as_tensor([model.actuator(f"{j}_vel").id for j in PLATFORM_JOINTS], device=dev)
+        self.plf_act_adr = torch.as_tensor(model.actuator_actadr[plf_act_pos], device=dev)  # servo targets in `act`
         self.robot_act = self.index.joint_act
+        self.pose_to_joint = torch.as_tensor(POSE_TO_JOINT, device=dev)
+        self._rows3 = torch.arange(n, device=dev).repeat(3)  # one reference evaluation for three times
+        self.qpos0 = self.tensor(model.qpos0)
 
         tc, cc = cfg.trajectory, cfg.curriculum
         self.traj_ranges = trj.ranges_for_split(tc.split)
@@ -78,7 +82,8 @@ class MovingPlatformEnv(BaseEnv):
         )
         self.traj = trj.sample(
             n, self.traj_ranges, self.rng, n_waypoints=self.traj_ranges.n_waypoints_min, spline=tc.spline
-        )
+        )  # host copy (files, plots, tracking); the step evaluates `traj_dev`
+        self.traj_dev = DevicePoly(self.traj, dev, self.dtype)
         self.traj_level = np.full(n, -1)
 
         rc = cfg.rewards
@@ -88,49 +93,50 @@ class MovingPlatformEnv(BaseEnv):
             rc.sigma_center_m, rc.sigma_alignment, rc.sigma_level_rad, rc.sigma_height_m, self.h_des_p_m,
             rc.f_tol_n, rc.t_swing_des_s, rc.t_contact_des_s,
         )  # fmt: skip
-        self.rewards = RewardManager(rc.weights, params, n)
-        self.plf_half_xy_m = np.array(cfg.platform.size_m[:2]) / 2.0
+        self.rewards = RewardManager(rc.weights, params, n, device=dev)
+        self.plf_half_xy_m = self.tensor(cfg.platform.size_m[:2]) / 2.0
 
-        self.action = np.zeros((n, 12))
-        self.action_prev = np.zeros((n, 12))
-        self.tau_prev = np.zeros((n, 12))
-        self.q_dot_prev = np.zeros((n, 12))
-        self.contact_prev = np.zeros((n, 4), dtype=bool)
-        self.t_air_s = np.zeros((n, 4))
-        self.t_contact_s = np.zeros((n, 4))
+        zeros = lambda *shape: torch.zeros((n, *shape), dtype=self.dtype, device=dev)  # noqa: E731
+        self.action = zeros(12)
+        self.action_prev = zeros(12)
+        self.tau_prev = zeros(12)
+        self.q_dot_prev = zeros(12)
+        self.contact_prev = torch.zeros((n, 4), dtype=torch.bool, device=dev)
+        self.t_air_s = zeros(4)
+        self.t_contact_s = zeros(4)
         self.nonfinite_obs_values = 0  # replaced by 0 in the last observation (a fault symptom)
         self.readout: Readout | None = None
-        # Hooks for evaluation: `episode_source.next_episodes(ids)` -> (trajectories, levels,
-        # Intrinsics) replaces the random draws at reset; `on_step(readout, collision)` sees every
-        # step's state before the finished envs are reset.
+        # Hooks for evaluation: `episode_source.next_episodes(ids)` (host ids) -> (trajectories,
+        # levels, Intrinsics) replaces the random draws at reset; `on_step(readout, collision)` sees
+        # every step's state (tensors) before the finished envs are reset.
         self.episode_source = None
         self.on_step = None
         self.last_state: StepState | None = None
 
     # -- control -------------------------------------------------------------------------------
 
-    def _apply_actions(self, actions: np.ndarray) -> None:
-        self.action_prev[:] = self.action
-        self.action[:] = actions
+    def _apply_actions(self, actions: torch.Tensor) -> None:
+        self.action_prev.copy_(self.action)
+        self.action.copy_(actions)
         ctrl = self.sim.ctrl
         ctrl[:, self.robot_act] = self.q_nominal + self.cfg.control.action_scale * actions
         # the kp servo's target starts at x_ref(t) and ramps to x_ref(t + dt) within the step;
         # the damping term tracks the reference velocity at mid-step (or damps toward rest, without
         # velocity feedforward)
-        n = self.num_envs
-        t_s = self.episode_length_buf.numpy() * self.dt_s
-        times = np.concatenate([t_s, t_s + self.dt_s, t_s + 0.5 * self.dt_s])  # one evaluation for all three
-        pose, vel, _ = self.traj.evaluate(times, np.tile(np.arange(n), 3))
-        x_now, x_next = pose[:n, POSE_TO_JOINT], pose[n : 2 * n, POSE_TO_JOINT]
-        v_mid = vel[2 * n :, POSE_TO_JOINT]
+        n, dt = self.num_envs, self.dt_s
+        t_s = self.episode_length_buf.to(self.dtype) * dt
+        times = torch.cat([t_s, t_s + dt, t_s + 0.5 * dt])  # one evaluation for all three
+        pose, vel = self.traj_dev.evaluate(times, self._rows3)
+        pose, vel = pose[:, self.pose_to_joint], vel[:, self.pose_to_joint]
+        x_now, x_next = pose[:n], pose[n : 2 * n]
         self.sim.act[:, self.plf_act_adr] = x_now
-        ctrl[:, self.plf_act_pos] = (x_next - x_now) / self.dt_s
-        ctrl[:, self.plf_act_vel] = v_mid if self.cfg.platform.velocity_feedforward else 0.0
+        ctrl[:, self.plf_act_pos] = (x_next - x_now) / dt
+        ctrl[:, self.plf_act_vel] = vel[2 * n :] if self.cfg.platform.velocity_feedforward else 0.0
 
     # -- evaluation ----------------------------------------------------------------------------
-    def _fell(self, r: Readout) -> np.ndarray:
+    def _fell(self, r: Readout) -> torch.Tensor:
         tc = self.cfg.termination
-        off = (np.abs(r.p_body_p[:, :2]) > self.plf_half_xy_m + tc.footprint_margin_m).any(axis=1)
+        off = (torch.abs(r.p_body_p[:, :2]) > self.plf_half_xy_m + tc.footprint_margin_m).any(dim=1)
         below = r.p_body_p[:, 2] < self.plf_top_m + tc.fall_below_top_m
         return off | below
 
@@ -143,42 +149,42 @@ class MovingPlatformEnv(BaseEnv):
         contact = r.foot_contact
         touchdown = contact & ~self.contact_prev
         liftoff = ~contact & self.contact_prev
-        self.t_air_s += dt * ~contact
-        self.t_contact_s += dt * contact
-        t_air_ended = np.where(touchdown, self.t_air_s, 0.0)
-        t_contact_ended = np.where(liftoff, self.t_contact_s, 0.0)
-        self.t_air_s[contact] = 0.0
-        self.t_contact_s[~contact] = 0.0
+        self.t_air_s += dt * (~contact).to(self.dtype)
+        self.t_contact_s += dt * contact.to(self.dtype)
+        t_air_ended = torch.where(touchdown, self.t_air_s, 0.0)
+        t_contact_ended = torch.where(liftoff, self.t_contact_s, 0.0)
+        self.t_air_s.masked_fill_(contact, 0.0)
+        self.t_contact_s.masked_fill_(~contact, 0.0)
         self.contact_prev = contact
-        dev = self.device
+        f32 = torch.float32  # rewards are computed in float32 on every backend
         state = StepState(
             dt_s=dt,
-            p_body_p=to_tensor(r.p_body_p, dev),
-            phi_body_w=to_tensor(r.phi_body_w, dev),
-            v_body_b=to_tensor(r.v_body_b, dev),
-            omega_body_b=to_tensor(r.omega_body_b, dev),
-            v_plf_b=to_tensor(r.v_plf_b, dev),
-            omega_plf_b=to_tensor(r.omega_plf_b, dev),
-            u_aln=to_tensor(r.u_aln, dev),
-            action=to_tensor(self.action, dev),
-            action_prev=to_tensor(self.action_prev, dev),
-            tau=to_tensor(r.tau, dev),
-            tau_prev=to_tensor(self.tau_prev, dev),
-            q_dot=to_tensor(r.q_dot, dev),
-            q_ddot=to_tensor((r.q_dot - self.q_dot_prev) / dt, dev),
-            f_feet_w=to_tensor(r.f_feet_w, dev),
-            contact=torch.from_numpy(contact),
-            touchdown=torch.from_numpy(touchdown),
-            liftoff=torch.from_numpy(liftoff),
-            t_air_s=to_tensor(t_air_ended, dev),
-            t_contact_s=to_tensor(t_contact_ended, dev),
-            v_slip_p=to_tensor(r.v_slip_p, dev),
-            collision=torch.from_numpy(collision),
+            p_body_p=r.p_body_p.to(f32),
+            phi_body_w=r.phi_body_w.to(f32),
+            v_body_b=r.v_body_b.to(f32),
+            omega_body_b=r.omega_body_b.to(f32),
+            v_plf_b=r.v_plf_b.to(f32),
+            omega_plf_b=r.omega_plf_b.to(f32),
+            u_aln=r.u_aln.to(f32),
+            action=self.action.to(f32),
+            action_prev=self.action_prev.to(f32),
+            tau=r.tau.to(f32),
+            tau_prev=self.tau_prev.to(f32),
+            q_dot=r.q_dot.to(f32),
+            q_ddot=((r.q_dot - self.q_dot_prev) / dt).to(f32),
+            f_feet_w=r.f_feet_w.to(f32),
+            contact=contact,
+            touchdown=touchdown,
+            liftoff=liftoff,
+            t_air_s=t_air_ended.to(f32),
+            t_contact_s=t_contact_ended.to(f32),
+            v_slip_p=r.v_slip_p.to(f32),
+            collision=collision,
         )
         self.last_state = state
         reward = self.rewards.compute(state)
-        self.tau_prev[:] = r.tau
-        self.q_dot_prev[:] = r.q_dot
+        self.tau_prev.copy_(r.tau)
+        self.q_dot_prev.copy_(r.q_dot)
         log = {
             "Termination/body_contact": float(r.body_collision.sum()),
             "Termination/fell": float(fell.sum()),
@@ -205,58 +211,56 @@ class MovingPlatformEnv(BaseEnv):
         spline = self.cfg.trajectory.spline
         return trj.sample(len(ids), self.traj_ranges, self.rng, n_waypoints=levels, spline=spline), levels
 
-    def _reset_envs(self, ids: np.ndarray, terminated: np.ndarray, timed_out: np.ndarray) -> dict:
+    def _reset_envs(self, ids: torch.Tensor, terminated: torch.Tensor, timed_out: torch.Tensor) -> dict:
         log = {}
         finished = terminated | timed_out
+        ids_h = ids.cpu().numpy()  # the host draws below are per env
         if finished.any():
             done = ids[finished]
             log = self._finished_episode_log(done)
-            success = timed_out[finished]
+            success = timed_out[finished].cpu().numpy()
             log["Episode/success_rate"] = float(success.mean())
             if self.curriculum is not None:
-                self.curriculum.update(self.traj_level[done], success)
+                self.curriculum.update(self.traj_level[ids_h[finished.cpu().numpy()]], success)
 
         n = len(ids)
         dr = self.cfg.domain_rand
         if self.episode_source is not None:
-            new_traj, levels, params = self.episode_source.next_episodes(ids)
+            new_traj, levels, params = self.episode_source.next_episodes(ids_h)
         else:
             if dr.enabled:
                 params = sample_intrinsics(n, dr.ranges, self.rng)
             else:
                 params = nominal_intrinsics(n, self.cfg.platform.kd_factor_ref)
-            new_traj, levels = self._next_trajectories(ids)
-        update_rows(self.intrinsics, ids, params)
+            new_traj, levels = self._next_trajectories(ids_h)
+        update_rows(self.intrinsics, ids_h, params)
+        self.x_imp[ids] = self.tensor(params.x_imp())
         self.writer.write(ids, params)
-        self.traj.replace_rows(ids, new_traj)
-        self.traj_level[ids] = levels
+        self.traj.replace_rows(ids_h, new_traj)
+        self.traj_dev.replace_rows(ids, new_traj)
+        self.traj_level[ids_h] = levels
 
-        m = self.sim.model
-        qpos = np.tile(m.qpos0, (n, 1))
-        ix = self.index
-        yaw = self.rng.uniform(*self.cfg.init_state.yaw_range_rad, size=n)
-        init = self.cfg.init_state
-        qpos[:, ix.root_qpos : ix.root_qpos + 2] = 0.0  # the platform's centre
-        qpos[:, ix.root_qpos + 2] = self.plf_top_m + self.trunk_height_m + init.foot_clearance_m
+        init, ix = self.cfg.init_state, self.index
+        yaw = self.rng.uniform(*init.yaw_range_rad, size=n)
+        xy = np.zeros((n, 2))  # the platform's centre
         if init.xy_offset_max_m > 0:  # uniform in the disc
             rho = init.xy_offset_max_m * np.sqrt(self.rng.uniform(size=n))
             angle = self.rng.uniform(-np.pi, np.pi, size=n)
-            qpos[:, ix.root_qpos] = rho * np.cos(angle)
-            qpos[:, ix.root_qpos + 1] = rho * np.sin(angle)
-        qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(yaw)
+            xy = np.stack([rho * np.cos(angle), rho * np.sin(angle)], axis=1)
+        qpos = self.qpos0.repeat(n, 1)
+        qpos[:, ix.root_qpos : ix.root_qpos + 2] = self.tensor(xy)
+        qpos[:, ix.root_qpos + 2] = self.plf_top_m + self.trunk_height_m + init.foot_clearance_m
+        qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(self.tensor(yaw))
         qpos[:, ix.joint_qpos] = self.q_nominal
         qpos[:, ix.plf_qpos] = 0.0
-        ctrl = np.zeros((n, m.nu))
+        m = self.sim.model
+        ctrl = torch.zeros((n, m.nu), dtype=self.dtype, device=self.device)
         ctrl[:, self.robot_act] = self.q_nominal
-        self.sim.reset(ids, qpos, np.zeros((n, m.nv)), ctrl, set_const=True)
+        self.sim.reset(ids, qpos, torch.zeros((n, m.nv), dtype=self.dtype, device=self.device), ctrl, set_const=True)
 
-        self.action[ids] = 0.0
-        self.action_prev[ids] = 0.0
-        self.tau_prev[ids] = 0.0
-        self.q_dot_prev[ids] = 0.0
+        for buf in (self.action, self.action_prev, self.tau_prev, self.q_dot_prev, self.t_air_s, self.t_contact_s):
+            buf[ids] = 0.0
         self.contact_prev[ids] = False
-        self.t_air_s[ids] = 0.0
-        self.t_contact_s[ids] = 0.0
         self._fresh = ids  # their history is filled with their first observation
         return log
 
@@ -268,16 +272,16 @@ class MovingPlatformEnv(BaseEnv):
         elif self._fresh is not None:
             update_rows(self.readout, self._fresh, read(self.sim, self.index, self._fresh))
         r = self.readout
-        o = proprioception(r, self.action)
-        x_exp = np.concatenate([r.foot_contact, r.v_body_b, r.v_plf_b, r.omega_plf_b], axis=1)
-        x_imp = self.intrinsics.x_imp()
-        critic = np.concatenate([o, x_exp, x_imp, r.u_aln, r.p_body_p, r.phi_body_w], axis=1)
-        groups = {"priv_explicit": x_exp, "priv_implicit": x_imp, "alignment": r.u_aln, "critic": critic}
+        o = proprioception(r, self.action, self.q_nominal)
+        x_exp = torch.cat([r.foot_contact.to(self.dtype), r.v_body_b, r.v_plf_b, r.omega_plf_b], dim=1)
+        critic = torch.cat([o, x_exp, self.x_imp, r.u_aln, r.p_body_p, r.phi_body_w], dim=1)
+        groups = {"priv_explicit": x_exp, "priv_implicit": self.x_imp, "alignment": r.u_aln, "critic": critic}
         return self._package_observations(o, groups)
 
     # -- checkpoint state ----------------------------------------------------------------------
     TASK_STATE = ("action", "action_prev", "tau_prev", "q_dot_prev", "contact_prev", "t_air_s", "t_contact_s",
-                  "traj", "traj_level", "_file_cursor", "intrinsics", "rewards", "readout", "last_state")  # fmt: skip
+                  "traj", "traj_dev", "traj_level", "_file_cursor", "intrinsics", "x_imp", "rewards", "readout",
+                  "last_state")  # fmt: skip
 
     def _task_state(self) -> dict:
         return {"curriculum": self.curriculum.state_dict() if self.curriculum is not None else None}

@@ -1,7 +1,7 @@
 """Turns the batch's raw arrays into the named physical quantities of SPEC §1 and §7: the robot's
 (`lasmp.envs.robot`) and the platform's, relative to each other.
 
-Everything here is numpy float64, (num_envs, ...). Frames: `w` world, `p` platform (origin at
+Everything here is torch, on the backend's device and dtype, (num_envs, ...). Frames: `w` world, `p` platform (origin at
 the platform's CoM = its geometric centre), `b` trunk (as in `lasmp.envs.robot`: origin at the
 trunk link origin, the IMU site; x forward, y left, z up).
 """
@@ -11,10 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import mujoco
-import numpy as np
+import torch
 
-from lasmp.envs.backends.cpu import CpuBatchSim
-from lasmp.envs.robot import RobotIndex, RobotReadout, read_robot, sensor_columns
+from lasmp.envs.robot import RobotIndex, RobotReadout, read_robot, sensor_columns, sensor_index
 from lasmp.envs.rotations import mat_from_euler_zyx, rotate_inv
 from lasmp.envs.scene import PLATFORM_JOINTS
 from lasmp.robots import a1
@@ -22,52 +21,55 @@ from lasmp.robots import a1
 
 @dataclass
 class Readout(RobotReadout):
-    p_plf_w: np.ndarray  # (n, 3)
-    r_wp: np.ndarray  # (n, 3, 3)
-    v_plf_w: np.ndarray  # (n, 3) platform CoM velocity
-    omega_plf_w: np.ndarray  # (n, 3)
-    p_body_p: np.ndarray  # (n, 3) trunk position in the platform frame
-    v_plf_b: np.ndarray  # (n, 3) velocity of the platform point under the trunk origin, in b
-    omega_plf_b: np.ndarray  # (n, 3)
-    u_aln: np.ndarray  # (n, 3)
-    v_slip_p: np.ndarray  # (n, 4, 2) foot velocity relative to the platform surface point under it, xy in p
+    p_plf_w: torch.Tensor  # (n, 3)
+    r_wp: torch.Tensor  # (n, 3, 3)
+    v_plf_w: torch.Tensor  # (n, 3) platform CoM velocity
+    omega_plf_w: torch.Tensor  # (n, 3)
+    p_body_p: torch.Tensor  # (n, 3) trunk position in the platform frame
+    v_plf_b: torch.Tensor  # (n, 3) velocity of the platform point under the trunk origin, in b
+    omega_plf_b: torch.Tensor  # (n, 3)
+    u_aln: torch.Tensor  # (n, 3)
+    v_slip_p: torch.Tensor  # (n, 4, 2) foot velocity relative to the platform surface point under it, xy in p
 
 
 class ReadoutIndex(RobotIndex):
     """The robot's addresses and the platform's, in qpos and sensordata (computed once)."""
 
-    def __init__(self, model: mujoco.MjModel):
-        super().__init__(model)
-        self.plf_qpos = np.array([model.joint(j).qposadr[0] for j in PLATFORM_JOINTS])
+    def __init__(self, model: mujoco.MjModel, device: torch.device | str = "cpu"):
+        super().__init__(model, device)
+        self.plf_qpos = torch.as_tensor([int(model.joint(j).qposadr[0]) for j in PLATFORM_JOINTS], device=device)
         self.plf_linvel = sensor_columns(model, "plf_linvel")
         self.plf_angvel = sensor_columns(model, "plf_angvel")
-        self.foot_linvel = [sensor_columns(model, f"{leg}_foot_linvel") for leg in a1.LEG_NAMES]
+        # (4, 3): per leg, the columns of its foot's linear-velocity sensor
+        self.foot_linvel = sensor_index(model, [f"{leg}_foot_linvel" for leg in a1.LEG_NAMES], device)
 
 
-def read(sim: CpuBatchSim, ix: ReadoutIndex, rows: np.ndarray | None = None) -> Readout:
+def read(sim, ix: ReadoutIndex, rows: torch.Tensor | None = None) -> Readout:
     """The quantities of all envs, or of envs `rows` only (in that order)."""
     robot = read_robot(sim, ix, rows)
     qpos, sd, site_xpos = sim.qpos, sim.sensordata, sim.site_xpos
     if rows is not None:
         qpos, sd, site_xpos = (x[rows] for x in (qpos, sd, site_xpos))
     plf = qpos[:, ix.plf_qpos]  # x, y, z, yaw, pitch, roll
-    p_plf_w = plf[:, :3].copy()
+    p_plf_w = plf[:, :3]
     r_wp = mat_from_euler_zyx(plf[:, 5], plf[:, 4], plf[:, 3])
-    v_plf_w = sd[:, ix.plf_linvel].copy()
-    omega_plf_w = sd[:, ix.plf_angvel].copy()
+    v_plf_w = sd[:, ix.plf_linvel].clone()
+    omega_plf_w = sd[:, ix.plf_angvel].clone()
 
     r_wb = robot.r_wb
     r_body = robot.p_body_w - p_plf_w  # lever arm platform CoM -> trunk origin, world
-    v_plf_at_body_w = v_plf_w + np.cross(omega_plf_w, r_body)
+    v_plf_at_body_w = v_plf_w + torch.linalg.cross(omega_plf_w, r_body)
     v_plf_b = rotate_inv(r_wb, v_plf_at_body_w)
     omega_plf_b = rotate_inv(r_wb, omega_plf_w)
-    u_aln = np.concatenate(
-        [v_plf_b[:, :2] - robot.v_body_b[:, :2], omega_plf_b[:, 2:] - robot.omega_body_b[:, 2:]], axis=1
+    u_aln = torch.cat(
+        [v_plf_b[:, :2] - robot.v_body_b[:, :2], omega_plf_b[:, 2:] - robot.omega_body_b[:, 2:]], dim=1
     )
 
     p_feet_w = site_xpos[:, ix.foot_site]
-    v_feet_w = np.stack([sd[:, s] for s in ix.foot_linvel], axis=1)
-    v_surface_w = v_plf_w[:, None, :] + np.cross(omega_plf_w[:, None, :], p_feet_w - p_plf_w[:, None, :])
+    v_feet_w = sd[:, ix.foot_linvel]  # (n, 4, 3)
+    v_surface_w = v_plf_w[:, None, :] + torch.linalg.cross(
+        omega_plf_w[:, None, :].expand_as(p_feet_w), p_feet_w - p_plf_w[:, None, :]
+    )
     v_slip_p = rotate_inv(r_wp, v_feet_w - v_surface_w)[:, :, :2]
 
     return Readout(

@@ -30,8 +30,7 @@ import torch
 from tensordict import TensorDict
 
 from lasmp.config import build_env_cfg
-from lasmp.envs.backends.cpu import CpuBatchSim
-from lasmp.envs.base_env import BaseEnv, to_tensor
+from lasmp.envs.base_env import BaseEnv
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, nominal_intrinsics, sample_intrinsics
 from lasmp.envs.moving_platform.rewards import RewardManager
 from lasmp.envs.robot import (
@@ -59,38 +58,42 @@ class RoughStaticEnv(BaseEnv):
         else:
             cfg.validate()
         model, self.terrain = build_model(cfg.terrain, cfg.sim)
-        sim = CpuBatchSim(model, cfg.num_envs, cfg.sim.num_threads)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
-        super().__init__(cfg, sim, 12, int(round(cfg.episode_length_s / dt_s)), device)
-        n = self.num_envs
-        self.index = RobotIndex(model)
-        self.writer = RobotIntrinsicsWriter(sim)
+        super().__init__(cfg, model, 12, int(round(cfg.episode_length_s / dt_s)), device)
+        n, dev = self.num_envs, self.device
+        self.index = RobotIndex(model, dev)
+        self.writer = RobotIntrinsicsWriter(self.sim)
         self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.domain_rand.train.platform_kd_factor[0])
-        self.q_nominal = np.asarray(a1.Q_NOMINAL_RAD)
+        self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
+        self.q_nominal = self.tensor(a1.Q_NOMINAL_RAD)
+        self.qpos0 = self.tensor(model.qpos0)
         self.trunk_height_m = a1.nominal_trunk_height_m(model)
         rc = cfg.rewards
         self.rewards = RewardManager(
             rc.weights,
             rw.RoughRewardParams(rc.tracking_sigma, rc.air_time_target_s),
             n,
+            device=dev,
             registry=rw.REWARD_TERMS,
         )
 
-        self.command = np.zeros((n, 3))
-        self.command_time_left_s = np.zeros(n)
-        self.push_time_left_s = np.zeros(n)
-        self.pushed = np.zeros(n, dtype=bool)  # envs pushed at the start of the last step
-        self.push_dv_mps = np.zeros((n, 2))  # their added world-frame xy velocity
-        self.action = np.zeros((n, 12))
-        self.action_prev = np.zeros((n, 12))
-        self.q_dot_prev = np.zeros((n, 12))
-        self.contact_prev = np.zeros((n, 4), dtype=bool)
-        self.t_air_s = np.zeros((n, 4))
+        zeros = lambda *shape: torch.zeros((n, *shape), dtype=self.dtype, device=dev)  # noqa: E731
+        self.command = zeros(3)
+        self.command_time_left_s = zeros()
+        self.push_time_left_s = zeros()
+        self.pushed = torch.zeros(n, dtype=torch.bool, device=dev)  # envs pushed at the start of the last step
+        self.push_dv_mps = zeros(2)  # their added world-frame xy velocity
+        self.action = zeros(12)
+        self.action_prev = zeros(12)
+        self.q_dot_prev = zeros(12)
+        self.contact_prev = torch.zeros((n, 4), dtype=torch.bool, device=dev)
+        self.t_air_s = zeros(4)
         self.readout: RobotReadout | None = None
         self.last_state: rw.RoughStepState | None = None
 
     # -- commands and pushes -------------------------------------------------------------------
     def sample_commands(self, n: int) -> np.ndarray:
+        """(n, 3) new commands, drawn on the host."""
         c = self.cfg.commands
         cmd = np.stack(
             [self.rng.uniform(*r, size=n) for r in (c.lin_vel_x_mps, c.lin_vel_y_mps, c.ang_vel_z_rad_s)],
@@ -99,31 +102,31 @@ class RoughStaticEnv(BaseEnv):
         cmd[self.rng.random(n) < c.zero_command_fraction] = 0.0
         return cmd
 
-    def _resample_commands(self, ids: np.ndarray) -> None:
-        self.command[ids] = self.sample_commands(len(ids))
+    def _resample_commands(self, ids: torch.Tensor) -> None:
+        self.command[ids] = self.tensor(self.sample_commands(len(ids)))
         self.command_time_left_s[ids] = self.cfg.commands.resample_s
 
-    def push(self, ids: np.ndarray) -> np.ndarray:
+    def push(self, ids: torch.Tensor) -> torch.Tensor:
         """Add a random horizontal velocity to the trunks of envs `ids`; return it (len(ids), 2), m/s."""
         pc = self.cfg.pushes
         angle = self.rng.uniform(-np.pi, np.pi, size=len(ids))
         speed = self.rng.uniform(0.0, pc.max_mps, size=len(ids))
-        dv = speed[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+        dv = self.tensor(speed[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1))
         # the free joint's linear velocity is in the world frame
         root_qvel = self.index.root_qvel
         self.sim.qvel[ids, root_qvel : root_qvel + 2] += dv
-        self.sim.batch.forward(ids)  # derived quantities follow the new state
-        self.push_time_left_s[ids] = self.rng.uniform(*pc.interval_s, size=len(ids))
+        self.sim.forward(ids)  # derived quantities follow the new state
+        self.push_time_left_s[ids] = self.tensor(self.rng.uniform(*pc.interval_s, size=len(ids)))
         return dv
 
     # -- control -------------------------------------------------------------------------------
-    def _apply_actions(self, actions: np.ndarray) -> None:
-        self.action_prev[:] = self.action
-        self.action[:] = actions
+    def _apply_actions(self, actions: torch.Tensor) -> None:
+        self.action_prev.copy_(self.action)
+        self.action.copy_(actions)
         self.sim.ctrl[:, self.index.joint_act] = self.q_nominal + self.cfg.control.action_scale * actions
-        self.pushed[:] = False
+        self.pushed.fill_(False)
         if self.cfg.pushes.enabled:
-            due = np.flatnonzero(self.push_time_left_s <= 0.0)
+            due = torch.nonzero(self.push_time_left_s <= 0.0).flatten()
             if len(due):
                 self.push_dv_mps[due] = self.push(due)
                 self.pushed[due] = True
@@ -133,37 +136,37 @@ class RoughStaticEnv(BaseEnv):
     def _evaluate(self):
         r, faulted = screen_faults(read_robot(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
         self.readout = r
-        tilted = (np.abs(r.phi_body_w[:, :2]) > self.cfg.termination.max_tilt_rad).any(axis=1)
+        tilted = (torch.abs(r.phi_body_w[:, :2]) > self.cfg.termination.max_tilt_rad).any(dim=1)
         fell = r.body_collision | tilted
         dt = self.dt_s
         contact = r.foot_contact
         touchdown = contact & ~self.contact_prev
-        self.t_air_s += dt * ~contact
-        t_air_ended = np.where(touchdown, self.t_air_s, 0.0)
-        self.t_air_s[contact] = 0.0
+        self.t_air_s += dt * (~contact).to(self.dtype)
+        t_air_ended = torch.where(touchdown, self.t_air_s, 0.0)
+        self.t_air_s.masked_fill_(contact, 0.0)
         self.contact_prev = contact
-        dev = self.device
+        f32 = torch.float32  # rewards are computed in float32 on every backend
         state = rw.RoughStepState(
             dt_s=dt,
-            v_body_b=to_tensor(r.v_body_b, dev),
-            omega_body_b=to_tensor(r.omega_body_b, dev),
-            command=to_tensor(self.command, dev),
-            gravity_b=to_tensor(r.gravity_b, dev),
-            q_dev=to_tensor(r.q - self.q_nominal, dev),
-            tau=to_tensor(r.tau, dev),
-            q_ddot=to_tensor((r.q_dot - self.q_dot_prev) / dt, dev),
-            action=to_tensor(self.action, dev),
-            action_prev=to_tensor(self.action_prev, dev),
-            body_contact=torch.from_numpy(r.body_collision.copy()),
-            touchdown=torch.from_numpy(touchdown),
-            t_air_s=to_tensor(t_air_ended, dev),
+            v_body_b=r.v_body_b.to(f32),
+            omega_body_b=r.omega_body_b.to(f32),
+            command=self.command.to(f32),
+            gravity_b=r.gravity_b.to(f32),
+            q_dev=(r.q - self.q_nominal).to(f32),
+            tau=r.tau.to(f32),
+            q_ddot=((r.q_dot - self.q_dot_prev) / dt).to(f32),
+            action=self.action.to(f32),
+            action_prev=self.action_prev.to(f32),
+            body_contact=r.body_collision.clone(),
+            touchdown=touchdown,
+            t_air_s=t_air_ended.to(f32),
         )
         self.last_state = state
         reward = self.rewards.compute(state)
-        self.q_dot_prev[:] = r.q_dot
+        self.q_dot_prev.copy_(r.q_dot)
         # commands run on their own clock; they are resampled after the reward used the old one
         self.command_time_left_s -= dt
-        due = np.flatnonzero(self.command_time_left_s <= 1e-9)
+        due = torch.nonzero(self.command_time_left_s <= 1e-9).flatten()
         if len(due):
             self._resample_commands(due)
         log = {
@@ -173,19 +176,21 @@ class RoughStaticEnv(BaseEnv):
         return reward, fell, faulted, log
 
     # -- resets --------------------------------------------------------------------------------
-    def _reset_envs(self, ids: np.ndarray, terminated: np.ndarray, timed_out: np.ndarray) -> dict:
+    def _reset_envs(self, ids: torch.Tensor, terminated: torch.Tensor, timed_out: torch.Tensor) -> dict:
         log = {}
         finished = terminated | timed_out
         if finished.any():
             log = self._finished_episode_log(ids[finished])
-            log["Episode/timeout_rate"] = float(timed_out[finished].mean())
+            log["Episode/timeout_rate"] = float(timed_out[finished].double().mean())
         n = len(ids)
+        ids_h = ids.cpu().numpy()  # the host draws below are per env
         dr = self.cfg.domain_rand
         if dr.enabled:
             params = sample_intrinsics(n, dr.ranges, self.rng)
         else:
             params = nominal_intrinsics(n, dr.train.platform_kd_factor[0])
-        update_rows(self.intrinsics, ids, params)
+        update_rows(self.intrinsics, ids_h, params)
+        self.x_imp[ids] = self.tensor(params.x_imp())
         self.writer.write(ids, params)
 
         tc = self.cfg.terrain
@@ -193,24 +198,22 @@ class RoughStaticEnv(BaseEnv):
         xy = self.rng.uniform(-half, half, size=(n, 2))
         yaw = self.rng.uniform(*self.cfg.init_state.yaw_range_rad, size=n)
         ground = self.terrain.max_height_near(xy, SPAWN_FOOTPRINT_M)
-        m = self.sim.model
-        qpos = np.tile(m.qpos0, (n, 1))
         ix = self.index
-        qpos[:, ix.root_qpos : ix.root_qpos + 2] = xy
-        qpos[:, ix.root_qpos + 2] = ground + self.trunk_height_m + self.cfg.init_state.foot_clearance_m
-        qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(yaw)
+        qpos = self.qpos0.repeat(n, 1)
+        qpos[:, ix.root_qpos : ix.root_qpos + 2] = self.tensor(xy)
+        qpos[:, ix.root_qpos + 2] = self.tensor(ground + self.trunk_height_m + self.cfg.init_state.foot_clearance_m)
+        qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(self.tensor(yaw))
         qpos[:, ix.joint_qpos] = self.q_nominal
-        ctrl = np.zeros((n, m.nu))
+        m = self.sim.model
+        ctrl = torch.zeros((n, m.nu), dtype=self.dtype, device=self.device)
         ctrl[:, ix.joint_act] = self.q_nominal
-        self.sim.reset(ids, qpos, np.zeros((n, m.nv)), ctrl, set_const=True)
+        self.sim.reset(ids, qpos, torch.zeros((n, m.nv), dtype=self.dtype, device=self.device), ctrl, set_const=True)
 
         self._resample_commands(ids)
-        self.push_time_left_s[ids] = self.rng.uniform(*self.cfg.pushes.interval_s, size=n)
-        self.action[ids] = 0.0
-        self.action_prev[ids] = 0.0
-        self.q_dot_prev[ids] = 0.0
+        self.push_time_left_s[ids] = self.tensor(self.rng.uniform(*self.cfg.pushes.interval_s, size=n))
+        for buf in (self.action, self.action_prev, self.q_dot_prev, self.t_air_s):
+            buf[ids] = 0.0
         self.contact_prev[ids] = False
-        self.t_air_s[ids] = 0.0
         self._fresh = ids
         return log
 
@@ -219,16 +222,15 @@ class RoughStaticEnv(BaseEnv):
         if self.readout is None or self._fresh is not None:
             self.readout = read_robot(self.sim, self.index)  # reset envs: their new state (one pass)
         r = self.readout
-        n = self.num_envs
-        o = proprioception(r, self.action)
-        x_exp = np.concatenate([r.foot_contact, r.v_body_b, np.zeros((n, 6))], axis=1)
-        x_imp = self.intrinsics.x_imp()
+        o = proprioception(r, self.action, self.q_nominal)
+        static = torch.zeros((self.num_envs, 6), dtype=self.dtype, device=self.device)
+        x_exp = torch.cat([r.foot_contact.to(self.dtype), r.v_body_b, static], dim=1)
         height = r.p_body_w[:, 2] - self.terrain.height_at(r.p_body_w[:, :2])
-        critic = np.concatenate([o, x_exp, x_imp, self.command, height[:, None], r.phi_body_w], axis=1)
-        groups = {"priv_explicit": x_exp, "priv_implicit": x_imp, "command": self.command, "critic": critic}
+        critic = torch.cat([o, x_exp, self.x_imp, self.command, height[:, None], r.phi_body_w], dim=1)
+        groups = {"priv_explicit": x_exp, "priv_implicit": self.x_imp, "command": self.command, "critic": critic}
         return self._package_observations(o, groups)
 
     # -- checkpoint state (nothing: no curriculum) ---------------------------------------------
     TASK_STATE = ("command", "command_time_left_s", "push_time_left_s", "pushed", "push_dv_mps", "action",
-                  "action_prev", "q_dot_prev", "contact_prev", "t_air_s", "intrinsics", "rewards", "readout",
+                  "action_prev", "q_dot_prev", "contact_prev", "t_air_s", "intrinsics", "x_imp", "rewards", "readout",
                   "last_state")  # fmt: skip

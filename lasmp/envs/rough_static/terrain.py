@@ -22,6 +22,7 @@ import math
 
 import mujoco
 import numpy as np
+import torch
 from scipy.ndimage import uniform_filter
 
 from lasmp.config import SimCfg
@@ -40,18 +41,22 @@ class Heightfield:
         self.nrow, self.ncol = heights_m.shape
         self.half_x_m = 0.5 * resolution_m * (self.ncol - 1)
         self.half_y_m = 0.5 * resolution_m * (self.nrow - 1)
+        self._heights_t: dict = {}  # the grid as a tensor, per (device, dtype) looked up on
 
-    def _grid(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        gx = np.clip((xy[..., 0] + self.half_x_m) / self.resolution_m, 0.0, self.ncol - 1.000001)
-        gy = np.clip((xy[..., 1] + self.half_y_m) / self.resolution_m, 0.0, self.nrow - 1.000001)
+    def _grid(self, xy):
+        gx = ((xy[..., 0] + self.half_x_m) / self.resolution_m).clip(0.0, self.ncol - 1.000001)
+        gy = ((xy[..., 1] + self.half_y_m) / self.resolution_m).clip(0.0, self.nrow - 1.000001)
         return gx, gy
 
-    def height_at(self, xy: np.ndarray) -> np.ndarray:
-        """Bilinear ground height (m) under world points xy (..., 2)."""
+    def height_at(self, xy: torch.Tensor) -> torch.Tensor:
+        """Bilinear ground height (m) under world points xy (..., 2), on xy's device and dtype."""
+        key = (xy.device, xy.dtype)
+        if key not in self._heights_t:
+            self._heights_t[key] = torch.as_tensor(self.heights_m, dtype=xy.dtype, device=xy.device)
+        h = self._heights_t[key]
         gx, gy = self._grid(xy)
-        c, r = np.floor(gx).astype(int), np.floor(gy).astype(int)
+        c, r = gx.floor().long(), gy.floor().long()
         fx, fy = gx - c, gy - r
-        h = self.heights_m
         return (
             h[r, c] * (1 - fx) * (1 - fy)
             + h[r, c + 1] * fx * (1 - fy)
@@ -105,6 +110,7 @@ def build_spec(terrain: TerrainCfg, sim: SimCfg) -> tuple[mujoco.MjSpec, Heightf
     spec.option.timestep = sim.dt_s
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.iterations = sim.solver_iterations
+    spec.option.tolerance = sim.solver_tolerance
     spec.option.ls_iterations = max(5, sim.solver_iterations // 2)
     world = spec.worldbody
     world.add_light(pos=[0, 0, 12], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])

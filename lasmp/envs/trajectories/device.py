@@ -1,0 +1,59 @@
+"""The platform references of the running envs as torch tensors on the env's device, evaluated
+there every policy step (no host round trip).
+
+A `PiecewisePoly` on the host stays the source (files, statistics, plots); `DevicePoly` mirrors
+the part the step needs, its breaks and coefficients, and takes new rows at reset.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from lasmp.envs.trajectories.splines import PiecewisePoly
+
+
+class DevicePoly:
+    def __init__(self, poly: PiecewisePoly, device: torch.device | str, dtype: torch.dtype):
+        self.device, self.dtype = torch.device(device), dtype
+        self.breaks_s = self._t(poly.breaks_s)  # (M, S+1), +inf padded
+        self.n_segments = torch.as_tensor(poly.n_segments, device=self.device)  # (M,)
+        self.coeffs = self._t(poly.coeffs)  # (M, S, D+1, 6), zero padded
+
+    def _t(self, x) -> torch.Tensor:
+        return torch.as_tensor(x, dtype=self.dtype, device=self.device)
+
+    def replace_rows(self, rows: torch.Tensor, new: PiecewisePoly) -> None:
+        """Rows `rows` take `new`'s rows (in order); the segment and degree axes grow as needed."""
+        s_new, d_new = new.coeffs.shape[1], new.coeffs.shape[2]
+        m, s_old, d_old = self.coeffs.shape[:3]
+        s, d = max(s_old, s_new), max(d_old, d_new)
+        if (s, d) != (s_old, d_old):  # pad: +inf breaks and zero coefficients change no value
+            breaks = torch.full((m, s + 1), torch.inf, dtype=self.dtype, device=self.device)
+            breaks[:, : s_old + 1] = self.breaks_s
+            coeffs = torch.zeros((m, s, d, 6), dtype=self.dtype, device=self.device)
+            coeffs[:, :s_old, :d_old] = self.coeffs
+            self.breaks_s, self.coeffs = breaks, coeffs
+        self.breaks_s[rows] = torch.inf
+        self.breaks_s[rows, : s_new + 1] = self._t(new.breaks_s)
+        self.coeffs[rows] = 0.0
+        self.coeffs[rows, :s_new, :d_new] = self._t(new.coeffs)
+        self.n_segments[rows] = torch.as_tensor(new.n_segments, device=self.device)
+
+    def evaluate(self, t_s: torch.Tensor, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Pose and velocity (k, 6) each of rows `rows` (k,) at times `t_s` (k,); at and after a row's
+        end, its final pose with zero velocity (`PiecewisePoly.evaluate` on the device, without the
+        acceleration, which the step does not use)."""
+        ns = self.n_segments[rows]
+        b = self.breaks_s[rows]  # (k, S+1)
+        t_end = b.gather(1, ns[:, None])[:, 0]
+        past = t_s >= t_end
+        tc = torch.minimum(torch.clamp(t_s, min=0.0), t_end)
+        seg = torch.minimum((b[:, 1:] <= tc[:, None]).sum(dim=1), ns - 1)
+        tau = (tc - b.gather(1, seg[:, None])[:, 0])[:, None]
+        c = self.coeffs[rows, seg]  # (k, D+1, 6)
+        # Horner with the derivative: pos = sum c_j tau^j, vel = its derivative
+        pos, vel = c[:, -1], torch.zeros_like(c[:, 0])
+        for j in range(c.shape[1] - 2, -1, -1):
+            vel = vel * tau + pos
+            pos = pos * tau + c[:, j]
+        return pos, vel.masked_fill(past[:, None], 0.0)

@@ -5,7 +5,9 @@ terminations, resets, domain randomization, trajectories. The raw baseline is a 
 the same kind (`--backend`: cpu = `mujoco.batch.Batch`, warp = MuJoCo Warp on `--device`) on the
 same compiled model, same env count and threads, same per-env parameters, same `nstep =
 decimation`, stepped from the very states the env's physics met (50 recorded during the env run,
-each restored with `set_state` before one timed `step`), and does nothing else. Both are reported in policy steps per second (env steps x envs / s);
+each restored with `set_state` before one timed `step`), and does nothing else. The raw steps are
+interleaved with the env's (one right after each recorded env step), so that both rates are
+measured over the same minutes of a shared machine. Both are reported in policy steps per second (env steps x envs / s);
 `ratio` = env / raw; `env_physics_share` is the
 share of the env's own wall time spent inside `Batch.step` on its states. Also reports the Stand Still collision rate over the episodes it ended.
 
@@ -26,45 +28,55 @@ from lasmp.envs.backends import make_backend
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
 
-def measure_env(env: MovingPlatformEnv, steps: int, snapshots: list | None = None) -> tuple[float, int, int]:
-    """Env policy steps/s with a = 0; optionally records the physics state before some steps."""
+def measure(env: MovingPlatformEnv, steps: int, raw_samples: int = 50) -> dict:
+    """Env policy steps/s with a = 0 and, interleaved with them, raw backend steps/s on the env's own
+    states: before every (steps // raw_samples)-th env step the physics state it meets is recorded
+    (inside the env's step, the recording's time left out), and right after that env step a second
+    backend of the same kind and model restarts from it and takes one timed step. Both rates are
+    thus measured over the same minutes: on a shared machine, speed drifts by 10 % and more between
+    one minute and the next."""
+    raw_sim = make_backend(env.cfg.backend, env.sim.model, env.num_envs, env.cfg.sim, env.device)
     actions = torch.zeros(env.num_envs, env.num_actions)
-    episodes = collisions = 0
-    env.sim.step_time_s = 0.0
+    every = max(1, steps // raw_samples)
     physics_step = env.sim.step
-    if snapshots is not None:  # the physics state (and per-env model) as each step sees it
-        every = max(1, steps // 50)
+    pending: list = []
+    recording_s = [0.0]
 
-        def recording_step(nstep, ids=None):
-            if len(snapshots) < 50 and int(env.episode_length_buf[0]) % every == 0:
-                snapshots.append(env.sim.get_state())
-            return physics_step(nstep, ids)
+    def recording_step(nstep, ids=None):
+        if want_snapshot:
+            start = time.perf_counter()
+            pending.append(env.sim.get_state())
+            recording_s[0] += time.perf_counter() - start
+        return physics_step(nstep, ids)
 
-        env.sim.step = recording_step
-    start = time.perf_counter()
-    for _ in range(steps):
+    env.sim.step = recording_step
+    env.sim.step_time_s = 0.0
+    env_s = raw_s = 0.0
+    episodes = collisions = raw_steps = 0
+    for k in range(steps):
+        want_snapshot = k % every == 0
+        start = time.perf_counter()
         _, _, done, extras = env.step(actions)
         ended = int(done.sum())  # a host sync each step, so the GPU's queue is drained when timed
+        env_s += time.perf_counter() - start
         episodes += ended
         collisions += ended - int(extras["time_outs"].sum())
-    elapsed = time.perf_counter() - start
+        while pending:
+            raw_sim.set_state(pending.pop())
+            before = raw_sim.step_time_s
+            raw_sim.step(env.cfg.sim.decimation)
+            raw_s += raw_sim.step_time_s - before
+            raw_steps += 1
     env.sim.step = physics_step
-    env.physics_share = env.sim.step_time_s / elapsed
-    return steps * env.num_envs / elapsed, episodes, collisions
-
-
-def measure_raw(env: MovingPlatformEnv, snapshots: list) -> float:
-    """Raw backend steps on the env's own states: a new backend of the same kind and model, restarted
-    from each recorded state (per-env parameters included); only the stepping itself is timed (the
-    backend's `step_time_s`, which leaves out its fault screen)."""
-    sim = make_backend(env.cfg.backend, env.sim.model, env.num_envs, env.cfg.sim, env.device)
-    elapsed = 0.0
-    for state in snapshots:
-        sim.set_state(state)
-        before = sim.step_time_s
-        sim.step(env.cfg.sim.decimation)
-        elapsed += sim.step_time_s - before
-    return len(snapshots) * env.num_envs / elapsed
+    env_s -= recording_s[0]
+    return {
+        "env_steps_per_s": steps * env.num_envs / env_s,
+        "raw_steps_per_s": raw_steps * env.num_envs / raw_s,
+        # share of the env's wall time spent inside the backend's stepping itself
+        "env_physics_share": env.sim.step_time_s / env_s,
+        "episodes": episodes,
+        "collisions": collisions,
+    }
 
 
 def main(argv=None) -> dict:
@@ -83,10 +95,9 @@ def main(argv=None) -> dict:
         device=args.device,
     )
     env.reset()
-    measure_env(env, 5)  # warm-up
-    snapshots: list = []
-    env_sps, episodes, collisions = measure_env(env, args.steps, snapshots)
-    raw = measure_raw(env, snapshots)
+    measure(env, 5, raw_samples=1)  # warm-up
+    m = measure(env, args.steps)
+    env_sps, raw, episodes, collisions = m["env_steps_per_s"], m["raw_steps_per_s"], m["episodes"], m["collisions"]
     result = {
         "num_envs": args.num_envs,
         "backend": args.backend,
@@ -95,8 +106,7 @@ def main(argv=None) -> dict:
         "env_steps_per_s": round(env_sps, 1),
         "raw_steps_per_s": round(raw, 1),
         "ratio": round(env_sps / raw, 3),
-        # share of the env's wall time spent inside Batch.step itself (same states as the env)
-        "env_physics_share": round(env.physics_share, 3),
+        "env_physics_share": round(m["env_physics_share"], 3),
         "stand_still_episodes": episodes,
         "stand_still_collision_rate": round(collisions / episodes, 4) if episodes else float("nan"),
         "faults": env.fault_count,

@@ -267,3 +267,34 @@ def test_shrinking_the_tail_steps_only_playing_envs_and_changes_no_episode():
         np.testing.assert_array_equal(results[True]["episodes"][key], value, err_msg=key)
     # 10 episodes on 4 envs: the third wave has 2 episodes, so the tail steps fewer envs
     assert stepped[True] < stepped[False]
+
+
+def test_results_table_rows_and_refusals(tmp_path, capsys):
+    from lasmp.eval import results_table as rt
+    from lasmp.eval.metrics import METRICS
+
+    def write(name, collision, estimator=None, episodes=100):
+        d = tmp_path / name
+        d.mkdir()
+        metrics = {k: {"mean": 0.5, "std": 0.01} for k in METRICS}
+        metrics["collision_rate"] = {"mean": collision, "std": 0.02}
+        result = {"method": name, "benchmark": "b.npz", "num_episodes": episodes, "metrics": metrics}
+        if estimator:
+            result["estimator"] = estimator
+        (d / "metrics.json").write_text(json.dumps(result))
+        return d
+
+    est = {"x_exp_mean_abs_error": {"contact_FR": 0.1, "v_body_x": 0.2}, "l_imp_mean_l2_error": 0.3}
+    dirs = [write("ss", 0.65), write("lasmp", 0.25, est), write("noexp", 0.3, {"x_exp_mean_abs_error": {},
+                                                                             "l_imp_mean_l2_error": 0.4})]  # fmt: skip
+    rt.main([str(d) for d in dirs] + ["--labels", "Stand Still", "LAS-MP", "no explicit"])
+    out = capsys.readouterr().out
+    assert "| Stand Still | 0.650 ± 0.020 |" in out and "| LAS-MP | 0.250 ± 0.020 |" in out
+    assert "| LAS-MP | 0.100 | 0.200 | 0.300 |" in out  # the estimator table: only methods that estimate
+    assert "| no explicit |  |  | 0.400 |" in out and "| Stand Still | 0.650" in out.split("Estimator")[0]
+    with pytest.raises(ValueError, match="different benchmarks or episode counts"):
+        rt.load_results([dirs[0], write("short", 0.5, episodes=10)])
+    with pytest.raises(FileNotFoundError, match="run `python evaluate.py"):
+        rt.load_results([tmp_path / "missing"])
+    with pytest.raises(ValueError, match="2 labels for 1 results"):
+        rt.load_results([dirs[0]], ["a", "b"])

@@ -354,3 +354,16 @@ def test_trajectory_file_rows_are_replayed_in_order(tmp_path):
     pose_env, _, _ = env.traj.evaluate(np.full(2, 3.0))
     pose_file, _, _ = traj.evaluate(np.full(2, 3.0), rows=[0, 1])
     assert np.array_equal(pose_env, pose_file)
+
+
+def test_observations_handed_out_stay_unchanged_through_the_next_step():
+    """rsl_rl copies a step's observations into its storage only after the following env.step: the
+    tensors handed out (history included, whose buffers the env reuses) must not change meanwhile."""
+    env = MovingPlatformEnv({"num_envs": 4, "seed": 0, "sim": {"num_threads": 1}})
+    obs, _ = env.reset()
+    for _ in range(4):
+        handed_out, snapshot = obs, obs.clone()
+        obs, _, _, _ = env.step(0.3 * torch.randn(4, 12))
+        for key, value in snapshot.items():
+            assert torch.equal(handed_out[key], value), key
+        assert torch.equal(obs["history"][:, 0], handed_out["policy"])  # the newest entry: the last o

@@ -52,6 +52,10 @@ class BaseEnv(VecEnv):
         self.history = torch.zeros(
             self.num_envs, cfg.observations.history_length, OBS_DIM, device=self.device
         )
+        # the next history is written into one of two spare buffers in turn, so that no buffer is
+        # allocated per step and the one handed out stays as it is through the next step too (rsl_rl
+        # copies a step's observations into its storage only after the following env step)
+        self._history_spares = [torch.zeros_like(self.history) for _ in range(2)]
         self._fresh: torch.Tensor | None = None  # ids of the envs reset since the last observation
         # evaluation hook: when set (a long tensor of env ids), only these envs' physics advance (the
         # idle envs at the tail of an evaluation); the others keep their state, their outputs are ignored
@@ -186,8 +190,12 @@ class BaseEnv(VecEnv):
         if self._fresh is not None:
             history[self._fresh] = o_t[self._fresh].unsqueeze(1)
             self._fresh = None
-        # the next step's history starts with this o (a new tensor: the one handed out stays as is)
-        self.history = torch.cat([o_t.unsqueeze(1), history[:, :-1]], dim=1)
+        # the next step's history starts with this o
+        spare = self._history_spares.pop(0)
+        spare[:, 0] = o_t
+        spare[:, 1:] = history[:, :-1]
+        self._history_spares.append(history)
+        self.history = spare
         tensors["history"] = history
         return TensorDict(tensors, batch_size=[self.num_envs], device=self.device)
 

@@ -46,6 +46,16 @@ def sensor_index(model: mujoco.MjModel, names, device) -> torch.Tensor:
     return torch.as_tensor(np.stack(cols), device=device)
 
 
+def as_slice(index: torch.Tensor) -> slice | torch.Tensor:
+    """`index` as a slice where it is an evenly spaced increasing run (a write through a slice is a
+    strided copy; through an index tensor, a slower scatter), else unchanged."""
+    values = index.tolist()
+    step = values[1] - values[0] if len(values) > 1 else 1
+    if step > 0 and values == list(range(values[0], values[0] + step * len(values), step)):
+        return slice(values[0], values[0] + step * (len(values) - 1) + 1, step)
+    return index
+
+
 class RobotIndex:
     """Addresses of the A1's state, actuators and sensors in a scene's model (computed once), as
     index tensors on `device` (gathers then stay on the device)."""
@@ -97,7 +107,7 @@ def read_robot(sim, ix: RobotIndex, rows: torch.Tensor | None = None) -> RobotRe
         qpos, qvel, sd, actuator_force = (x[rows] for x in (qpos, qvel, sd, actuator_force))
     quat = qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7]
     r_wb = quat_to_mat(quat / torch.linalg.vector_norm(quat, dim=1, keepdim=True))
-    contact = sd[:, ix.foot_contact]  # (n, 4, 4): found, force (3)
+    contact = sd.index_select(1, ix.foot_contact.flatten()).view(-1, 4, 4)  # (n, 4, 4): found, force (3)
     foot_contact = contact[:, :, 0] > 0
     return RobotReadout(
         p_body_w=qpos[:, ix.root_qpos : ix.root_qpos + 3].clone(),
@@ -108,13 +118,14 @@ def read_robot(sim, ix: RobotIndex, rows: torch.Tensor | None = None) -> RobotRe
         omega_body_b=qvel[:, ix.root_qvel + 3 : ix.root_qvel + 6].clone(),
         acc_imu_b=sd[:, ix.acc].clone(),
         gyro_b=sd[:, ix.gyro].clone(),
-        q=qpos[:, ix.joint_qpos],
-        q_dot=qvel[:, ix.joint_qvel],
-        tau=actuator_force[:, ix.joint_act],
+        # index_select: a gather of whole columns (copies, as the readout must not view live memory)
+        q=qpos.index_select(1, ix.joint_qpos),
+        q_dot=qvel.index_select(1, ix.joint_qvel),
+        tau=actuator_force.index_select(1, ix.joint_act),
         foot_contact=foot_contact,
         # the sensor reports the force of the foot on the other body; the force on the foot is its negative
         f_feet_w=-contact[:, :, 1:4] * foot_contact[:, :, None],
-        body_collision=(sd[:, ix.collision] > 0).any(dim=1),
+        body_collision=(sd.index_select(1, ix.collision) > 0).any(dim=1),
     )
 
 

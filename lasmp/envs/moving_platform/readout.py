@@ -50,7 +50,7 @@ def read(sim, ix: ReadoutIndex, rows: torch.Tensor | None = None) -> Readout:
     qpos, sd, site_xpos = sim.qpos, sim.sensordata, sim.site_xpos
     if rows is not None:
         qpos, sd, site_xpos = (x[rows] for x in (qpos, sd, site_xpos))
-    plf = qpos[:, ix.plf_qpos]  # x, y, z, yaw, pitch, roll
+    plf = qpos.index_select(1, ix.plf_qpos)  # x, y, z, yaw, pitch, roll
     p_plf_w = plf[:, :3]
     r_wp = mat_from_euler_zyx(plf[:, 5], plf[:, 4], plf[:, 3])
     v_plf_w = sd[:, ix.plf_linvel].clone()
@@ -65,8 +65,8 @@ def read(sim, ix: ReadoutIndex, rows: torch.Tensor | None = None) -> Readout:
         [v_plf_b[:, :2] - robot.v_body_b[:, :2], omega_plf_b[:, 2:] - robot.omega_body_b[:, 2:]], dim=1
     )
 
-    p_feet_w = site_xpos[:, ix.foot_site]
-    v_feet_w = sd[:, ix.foot_linvel]  # (n, 4, 3)
+    p_feet_w = site_xpos.index_select(1, ix.foot_site)
+    v_feet_w = sd.index_select(1, ix.foot_linvel.flatten()).view(-1, 4, 3)
     v_surface_w = v_plf_w[:, None, :] + torch.linalg.cross(
         omega_plf_w[:, None, :].expand_as(p_feet_w), p_feet_w - p_plf_w[:, None, :]
     )

@@ -18,6 +18,7 @@ class DevicePoly:
         self.breaks_s = self._t(poly.breaks_s)  # (M, S+1), +inf padded
         self.n_segments = torch.as_tensor(poly.n_segments, device=self.device)  # (M,)
         self.coeffs = self._t(poly.coeffs)  # (M, S, D+1, 6), zero padded
+        self._gathered: torch.Tensor | None = None  # the step's coefficients, reused
 
     def _t(self, x) -> torch.Tensor:
         return torch.as_tensor(x, dtype=self.dtype, device=self.device)
@@ -43,17 +44,24 @@ class DevicePoly:
         """Pose and velocity (k, 6) each of rows `rows` (k,) at times `t_s` (k,); at and after a row's
         end, its final pose with zero velocity (`PiecewisePoly.evaluate` on the device, without the
         acceleration, which the step does not use)."""
-        ns = self.n_segments[rows]
-        b = self.breaks_s[rows]  # (k, S+1)
+        ns = self.n_segments.index_select(0, rows)
+        b = self.breaks_s.index_select(0, rows)  # (k, S+1)
         t_end = b.gather(1, ns[:, None])[:, 0]
         past = t_s >= t_end
         tc = torch.minimum(torch.clamp(t_s, min=0.0), t_end)
         seg = torch.minimum((b[:, 1:] <= tc[:, None]).sum(dim=1), ns - 1)
         tau = (tc - b.gather(1, seg[:, None])[:, 0])[:, None]
-        c = self.coeffs[rows, seg]  # (k, D+1, 6)
-        # Horner with the derivative: pos = sum c_j tau^j, vel = its derivative
-        pos, vel = c[:, -1], torch.zeros_like(c[:, 0])
-        for j in range(c.shape[1] - 2, -1, -1):
-            vel = vel * tau + pos
-            pos = pos * tau + c[:, j]
-        return pos, vel.masked_fill(past[:, None], 0.0)
+        m, s, d1 = self.coeffs.shape[:3]
+        # (k, D+1, 6): rows of the flattened (row, segment) axis; index_select copies whole rows, far
+        # faster on a CPU than indexing with two tensors, into a kept buffer (a fresh MB-sized one per
+        # step would be page-faulted in anew each time)
+        if self._gathered is None or self._gathered.shape != (len(rows), d1, 6):
+            self._gathered = torch.empty((len(rows), d1, 6), dtype=self.dtype, device=self.device)
+        c = torch.index_select(self.coeffs.view(m * s, d1, 6), 0, rows * s + seg, out=self._gathered)
+        # Horner with the derivative: pos = sum c_j tau^j, vel = its derivative (in place, the same
+        # arithmetic as vel = vel * tau + pos; pos = pos * tau + c_j)
+        pos, vel = c[:, -1].clone(), torch.zeros_like(c[:, 0])
+        for j in range(d1 - 2, -1, -1):
+            vel.mul_(tau).add_(pos)
+            pos.mul_(tau).add_(c[:, j])
+        return pos, vel.masked_fill_(past[:, None], 0.0)

@@ -15,8 +15,8 @@ import torch
 pytest.importorskip("mujoco_warp", reason="the gpu extra is not installed: pip install -e '.[gpu]'")
 
 from lasmp.envs.moving_platform.env import MovingPlatformEnv  # noqa: E402
-from lasmp.eval.benchmark import load as load_benchmark  # noqa: E402
-from lasmp.eval.cli import DEFAULT_BENCHMARK, eval_env_overrides  # noqa: E402
+from lasmp.eval import benchmark as bm  # noqa: E402
+from lasmp.eval.cli import eval_env_overrides  # noqa: E402
 from lasmp.eval.run import run_benchmark  # noqa: E402
 
 pytestmark = pytest.mark.warp
@@ -77,9 +77,10 @@ def test_both_backends_agree_over_100_policy_steps():
 
 
 def test_stand_still_collides_in_the_same_benchmark_episodes():
-    """Stand Still (a = 0) on the first 16 episodes of Xi_eval: the same episodes end in a
-    collision on both backends."""
-    bench = load_benchmark(DEFAULT_BENCHMARK)
+    """Stand Still (a = 0) on 16 benchmark episodes (a benchmark made as Xi_eval is, seed 0, 16
+    trajectories and 16 robots of the testing ranges): the same episodes end in a collision on both
+    backends."""
+    bench = bm.generate(num_trajectories=16, num_robots=16, seed=0)
     outcomes = {}
     for backend, device in (("cpu", "cpu"), ("warp", "cpu")):
         env = MovingPlatformEnv({**eval_env_overrides(16, 0), "backend": backend, "sim": {"num_threads": 1}},

@@ -3,6 +3,7 @@ random states in checkpoints, and Ctrl-C / SIGTERM during the real train.py."""
 
 from __future__ import annotations
 
+import copy
 import os
 import signal
 import subprocess
@@ -244,3 +245,28 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
     control.learn(2)
     weights = control.alg.get_policy().state_dict()
     assert not all(torch.equal(v, weights[k]) for k, v in a["actor_state_dict"].items())
+
+
+def test_a_running_state_from_another_env_version_or_backend_is_refused_with_a_warning():
+    """A running state saved by the numpy env (before the GPU backend: no format mark) or by another
+    backend cannot be restored into this env: it is skipped with a warning, the episodes restart."""
+    from lasmp.envs.moving_platform.env import MovingPlatformEnv
+
+    env = MovingPlatformEnv({"num_envs": 2, "seed": 0, "sim": {"num_threads": 1}})
+    env.reset()
+    for _ in range(3):
+        env.step(torch.zeros(2, 12))
+    saved = env.state_dict()
+    fresh = MovingPlatformEnv({"num_envs": 2, "seed": 1, "sim": {"num_threads": 1}})
+    fresh.load_state_dict(copy.deepcopy(saved))  # the same format and backend: restored
+    assert torch.equal(fresh.sim.qpos, env.sim.qpos) and torch.equal(fresh.episode_length_buf, env.episode_length_buf)
+    for key, value in (("format", None), ("backend", "warp")):
+        other = copy.deepcopy(saved)
+        if value is None:
+            del other["run"][key]
+        else:
+            other["run"][key] = value
+        target = MovingPlatformEnv({"num_envs": 2, "seed": 1, "sim": {"num_threads": 1}})
+        with pytest.warns(UserWarning, match="saved by another env"):
+            target.load_state_dict(other)
+        assert not torch.equal(target.sim.qpos, env.sim.qpos)  # not restored

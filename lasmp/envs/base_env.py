@@ -21,6 +21,7 @@ the env's numpy generator and sent to the device.
 from __future__ import annotations
 
 import copy
+import warnings
 from abc import abstractmethod
 
 import numpy as np
@@ -65,6 +66,8 @@ class BaseEnv(VecEnv):
     # loop reads (a task lists its own in TASK_STATE)
     RUN_STATE = ("episode_length_buf", "history", "_obs", "_fresh", "fault_count", "nonfinite_obs_values")
     TASK_STATE: tuple[str, ...] = ()
+    # 2: the buffers are torch tensors on the env's device (1, unmarked: numpy, before the GPU backend)
+    RUN_STATE_FORMAT = 2
 
     def state_dict(self, run: bool = True) -> dict:
         """The task's persistent state (e.g. the curriculum) and, with `run`, the running state of
@@ -73,8 +76,8 @@ class BaseEnv(VecEnv):
         d = self._task_state()
         if run:
             names = self.RUN_STATE + self.TASK_STATE
-            d["run"] = {"num_envs": self.num_envs, "sim": self.sim.get_state(),
-                        "attrs": copy.deepcopy({k: getattr(self, k) for k in names})}  # fmt: skip
+            d["run"] = {"format": self.RUN_STATE_FORMAT, "backend": self.cfg.backend, "num_envs": self.num_envs,
+                        "sim": self.sim.get_state(), "attrs": copy.deepcopy({k: getattr(self, k) for k in names})}  # fmt: skip
         return d
 
     def load_state_dict(self, d: dict, run: bool = True) -> None:
@@ -85,9 +88,16 @@ class BaseEnv(VecEnv):
         if run and saved is not None:
             if saved["num_envs"] != self.num_envs:
                 raise ValueError(f"saved running state is for {saved['num_envs']} envs, this env has {self.num_envs}")
+            made_by = (saved.get("format", 1), saved.get("backend", "cpu"))
+            if made_by != (self.RUN_STATE_FORMAT, self.cfg.backend):
+                warnings.warn(f"the checkpoint's running state was saved by another env (format {made_by[0]}, "
+                              f"backend {made_by[1]}; this one: {self.RUN_STATE_FORMAT}, {self.cfg.backend}): "
+                              "it is not restored, every env starts a new episode (the resume is not exact)",
+                              stacklevel=2)  # fmt: skip
+                return
             self.sim.set_state(saved["sim"])
             for key, value in copy.deepcopy(saved["attrs"]).items():
-                setattr(self, key, value)
+                setattr(self, key, _on_device(value, self.device))
 
     def _task_state(self) -> dict:
         return {}
@@ -203,3 +213,20 @@ class BaseEnv(VecEnv):
         obs = self._observations()
         log["/faults/nonfinite_obs_values"] = float(self.nonfinite_obs_values)
         return obs
+
+
+def _on_device(value, device):
+    """A loaded buffer on the env's device (a checkpoint is mapped to the learner's device, which the
+    cpu backend's env does not share): tensors, TensorDicts, and the tensors inside dicts, lists and
+    the small objects the env keeps (readouts, step states, the device trajectories, reward sums)."""
+    if isinstance(value, (torch.Tensor, TensorDict)):
+        return value.to(device)
+    if isinstance(value, dict):
+        return {k: _on_device(v, device) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_on_device(v, device) for v in value]
+    if hasattr(value, "__dict__") and not isinstance(value, type):
+        for k, v in vars(value).items():
+            if isinstance(v, (torch.Tensor, TensorDict, dict, list)) or hasattr(v, "__dict__"):
+                setattr(value, k, _on_device(v, device))
+    return value

@@ -79,18 +79,22 @@ def train(cfg) -> LasmpRunner:
         print(f"resumed from {cfg.resume} at iteration {runner.current_learning_iteration}", flush=True)
     print(f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs, {cfg.runner.max_iterations} "
           f"iterations, logs in {log_dir}", flush=True)  # fmt: skip
+    last = runner.current_learning_iteration + cfg.runner.max_iterations - 1  # the iteration this command ends at
     try:
         runner.learn(cfg.runner.max_iterations)
     except TrainingInterrupted as stop:
         if stop.checkpoint:
-            print(f"{stop}\nresume with:\n  {resume_command(stop.checkpoint, log_dir)}", flush=True)
+            # on a resume, runner.max_iterations counts the iterations still to run: those left
+            left = last - stop.iteration
+            print(f"{stop}\nresume with:\n  {resume_command(stop.checkpoint, log_dir, left)}", flush=True)
         raise
     return runner
 
 
-def resume_command(checkpoint: str, log_dir: str) -> str:
+def resume_command(checkpoint: str, log_dir: str, iterations_left: int | None = None) -> str:
     """The train.py command line that continues a run: this run's own overrides (from Hydra, when
-    it composed the config) with resume= and runner.log_dir= set."""
+    it composed the config) with resume= and runner.log_dir= set, and runner.max_iterations= the
+    iterations left to the end the interrupted command set (a resume runs that many more)."""
     overrides: list[str] = []
     try:
         from hydra.core.hydra_config import HydraConfig
@@ -101,5 +105,8 @@ def resume_command(checkpoint: str, log_dir: str) -> str:
         pass
     # a `+key=` that composed names a key of the schema (validation refuses others), and Hydra now
     # refuses `+` on an existing key: repeat it without the `+`
-    keep = [o.removeprefix("+") for o in overrides if not o.lstrip("+~").startswith(("resume=", "runner.log_dir="))]
+    drop = ("resume=", "runner.log_dir=") + (("runner.max_iterations=",) if iterations_left is not None else ())
+    keep = [o.removeprefix("+") for o in overrides if not o.lstrip("+~").startswith(drop)]
+    if iterations_left is not None:
+        keep.append(f"runner.max_iterations={max(iterations_left, 1)}")
     return " ".join(["python train.py", *keep, f"resume={checkpoint}", f"runner.log_dir={log_dir}"])

@@ -196,6 +196,8 @@ def test_signal_during_train_py_saves_the_current_iteration_and_prints_the_resum
     command = out.split("resume with:")[1].strip().splitlines()[0]
     assert command.startswith("python train.py ") and f"resume={saved[-1]}" in command
     assert f"runner.log_dir={run}" in command and "env.num_envs=4" in command
+    # a resume runs runner.max_iterations more: the command asks for those left of the first one's 500
+    assert f"runner.max_iterations={500 - (stopped_at + 1)}" in command.split()
 
     resume = command.split()[2:]
     resume = [a if not a.startswith("runner.max_iterations=") else "runner.max_iterations=1" for a in resume]

@@ -240,6 +240,11 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
     np.testing.assert_array_equal(np.asarray(a["env_state"]["run"]["sim"]["state"]),
                                   np.asarray(b["env_state"]["run"]["sim"]["state"]))  # fmt: skip
     assert torch.equal(a["rng_state"]["torch"], b["rng_state"]["torch"])
+    # the logged episode rewards go on too: sums of the running episodes, windows of the finished ones
+    log_a, log_b = a["episode_log_state"], b["episode_log_state"]
+    assert torch.equal(log_a["reward_sum"], log_b["reward_sum"]) and log_a["reward_sum"].abs().sum() > 0
+    assert torch.equal(log_a["length"], log_b["length"])
+    assert log_a["rewards"] == log_b["rewards"] and log_a["lengths"] == log_b["lengths"]
     # control: the same resume with the envs restarting their episodes is *not* the same run
     control = make_runner(tiny(tmp_path / "c", algo=algo, **over), None)
     control.load(resume, load_cfg={"actor": True, "critic": True, "optimizer": True, "iteration": True,

@@ -180,8 +180,23 @@ class LasmpRunner(OnPolicyRunner):
             num_actions=self.env.num_actions,
             env_state=self.env.state_dict(),
             rng_state=rng_state(self.env.rng),
+            episode_log_state=self._episode_log_state(),
         )
         atomic_torch_save(data, path)
+
+    def _episode_log_state(self) -> dict:
+        """The logger's running episode sums and its windows of finished episodes: without them the
+        first rewards logged after a resume would count only the steps since the resume."""
+        log = self.logger
+        return {"reward_sum": log.cur_reward_sum.cpu(), "length": log.cur_episode_length.cpu(),
+                "rewards": list(log.rewbuffer), "lengths": list(log.lenbuffer)}  # fmt: skip
+
+    def _load_episode_log_state(self, saved: dict) -> None:
+        log = self.logger
+        log.cur_reward_sum.copy_(saved["reward_sum"])
+        log.cur_episode_length.copy_(saved["length"])
+        log.rewbuffer.extend(saved["rewards"])
+        log.lenbuffer.extend(saved["lengths"])
 
     def load(
         self, path: str, load_cfg: dict | None = None, strict: bool = True, map_location: str | None = None
@@ -197,7 +212,9 @@ class LasmpRunner(OnPolicyRunner):
         if load_cfg is None or load_cfg.get("iteration", True):
             self.current_learning_iteration = int(data["iter"]) + 1  # the saved iteration is complete
         if data.get("env_state"):  # the running state only to resume training in an env of the same size
-            self.env.load_state_dict(data["env_state"], run=load_cfg is None or load_cfg.get("env_run_state", True))
+            run = load_cfg is None or load_cfg.get("env_run_state", True)
+            if self.env.load_state_dict(data["env_state"], run=run) and data.get("episode_log_state"):
+                self._load_episode_log_state(data["episode_log_state"])
         if data.get("rng_state"):  # older checkpoints lack it: the streams then restart from the seed
             set_rng_state(data["rng_state"], self.env.rng)
         return data.get("infos")

@@ -80,9 +80,10 @@ class BaseEnv(VecEnv):
                         "sim": self.sim.get_state(), "attrs": copy.deepcopy({k: getattr(self, k) for k in names})}  # fmt: skip
         return d
 
-    def load_state_dict(self, d: dict, run: bool = True) -> None:
+    def load_state_dict(self, d: dict, run: bool = True) -> bool:
         """Restore `state_dict` output; the running state only with `run` and a saved one (older
-        checkpoints and policy checkpoints carry the task state alone)."""
+        checkpoints and policy checkpoints carry the task state alone). True if the running state was
+        restored (the episodes go on), False if every env starts a new episode."""
         self._load_task_state(d)
         saved = d.get("run")
         if run and saved is not None:
@@ -94,10 +95,12 @@ class BaseEnv(VecEnv):
                               f"backend {made_by[1]}; this one: {self.RUN_STATE_FORMAT}, {self.cfg.backend}): "
                               "it is not restored, every env starts a new episode (the resume is not exact)",
                               stacklevel=2)  # fmt: skip
-                return
+                return False
             self.sim.set_state(saved["sim"])
             for key, value in copy.deepcopy(saved["attrs"]).items():
                 setattr(self, key, _on_device(value, self.device))
+            return True
+        return False
 
     def _task_state(self) -> dict:
         return {}

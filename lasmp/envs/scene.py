@@ -63,6 +63,11 @@ def platform_gains(cfg: PlatformCfg) -> PlatformGains:
     return PlatformGains(kp=kp, kd=kd)
 
 
+def platform_actuator_ids(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """Ids of the platform's position servos and of its velocity (damping) actuators, PLATFORM_JOINTS order."""
+    return tuple(np.array([model.actuator(f"{j}_{kind}").id for j in PLATFORM_JOINTS]) for kind in ("pos", "vel"))
+
+
 def platform_top_z_m(cfg: PlatformCfg) -> float:
     """Height of the platform's top surface above its centre, m."""
     return cfg.size_m[2] / 2.0

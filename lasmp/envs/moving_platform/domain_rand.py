@@ -14,7 +14,7 @@ import torch
 
 from lasmp.config import DomainRandRanges
 from lasmp.envs.robot import RobotIntrinsics, RobotIntrinsicsWriter
-from lasmp.envs.scene import PLATFORM_JOINTS, PlatformGains
+from lasmp.envs.scene import PlatformGains
 from lasmp.robots import a1
 
 
@@ -57,12 +57,10 @@ class IntrinsicsWriter(RobotIntrinsicsWriter):
     """Writes `Intrinsics` of some envs into the batch's per-simulation model fields: the robot's,
     then the platform's PD gains."""
 
-    def __init__(self, sim, gains: PlatformGains):
+    def __init__(self, sim, gains: PlatformGains, plf_act_pos: torch.Tensor, plf_act_vel: torch.Tensor):
         super().__init__(sim)
-        m = sim.model
         self._gains = gains
-        self._plf_pos_act = torch.as_tensor([m.actuator(f"{j}_pos").id for j in PLATFORM_JOINTS], device=sim.device)
-        self._plf_vel_act = torch.as_tensor([m.actuator(f"{j}_vel").id for j in PLATFORM_JOINTS], device=sim.device)
+        self._plf_pos_act, self._plf_vel_act = plf_act_pos, plf_act_vel
 
     def write(self, ids: torch.Tensor, p: Intrinsics) -> None:
         super().write(ids, p)

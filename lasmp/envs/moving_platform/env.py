@@ -34,7 +34,13 @@ from lasmp.envs.moving_platform.rewards import RewardManager, RewardParams
 from lasmp.envs.moving_platform.state import StepState
 from lasmp.envs.robot import as_slice, proprioception, screen_faults, update_rows
 from lasmp.envs.rotations import yaw_quat
-from lasmp.envs.scene import PLATFORM_JOINTS, POSE_TO_JOINT, build_model, platform_gains, platform_top_z_m
+from lasmp.envs.scene import (
+    POSE_TO_JOINT,
+    build_model,
+    platform_actuator_ids,
+    platform_gains,
+    platform_top_z_m,
+)
 from lasmp.envs.trajectories.device import DevicePoly
 from lasmp.robots import a1
 
@@ -51,14 +57,14 @@ class MovingPlatformEnv(BaseEnv):
         n, dev = self.num_envs, self.device
         self.index = ReadoutIndex(model, dev)
         self.gains = platform_gains(cfg.platform)
-        self.writer = IntrinsicsWriter(self.sim, self.gains)
+        plf_act_pos, plf_act_vel = platform_actuator_ids(model)
+        self.plf_act_pos = torch.as_tensor(plf_act_pos, device=dev)
+        self.plf_act_vel = torch.as_tensor(plf_act_vel, device=dev)
+        self.writer = IntrinsicsWriter(self.sim, self.gains, self.plf_act_pos, self.plf_act_vel)
         self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.platform.kd_factor_ref)  # host copy
         self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
         self.q_nominal = self.tensor(a1.Q_NOMINAL_RAD)
         self.trunk_height_m = a1.nominal_trunk_height_m(model)
-        plf_act_pos = np.array([model.actuator(f"{j}_pos").id for j in PLATFORM_JOINTS])
-        self.plf_act_pos = torch.as_tensor(plf_act_pos, device=dev)
-        self.plf_act_vel = torch.as_tensor([model.actuator(f"{j}_vel").id for j in PLATFORM_JOINTS], device=dev)
         self.plf_act_adr = torch.as_tensor(model.actuator_actadr[plf_act_pos], device=dev)  # servo targets in `act`
         self.robot_act = self.index.joint_act
         # the columns the step writes, as slices where they are (evenly spaced runs: faster writes)

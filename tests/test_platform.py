@@ -156,6 +156,29 @@ def test_tracking_error_of_generated_reference(kp_f, kd_f, bound_m, bound_rad):
     assert trans > 1e-4 and rot > 1e-5, f"suspiciously perfect tracking: {msg}"
 
 
+def test_servo_targets_sit_on_the_reference_at_every_policy_step():
+    # the env never writes the targets (`act`): a reset zeroes them, where every trajectory starts,
+    # and within each step they ramp to the next reference sample, so they must land on x_ref(t)
+    # at every step boundary, up to rounding
+    n = 4
+    refs = trj.sample(n, trj.TRAIN_RANGES, np.random.default_rng(7), n_waypoints=6)
+    env = _make_env(n, refs, platform={}, domain_rand={"enabled": False})
+    act_adr = env.plf_act_adr.numpy()
+
+    def target_error() -> float:
+        t = env.episode_length_buf.numpy() * env.dt_s
+        ref = env.traj.evaluate(t)[0][:, POSE_TO_JOINT]
+        return float(np.abs(env.sim.act.numpy()[:, act_adr] - ref).max())
+
+    assert target_error() == 0.0  # at reset
+    moved = 0.0
+    for _ in range(_steps(env, 2.0)):
+        env.step(torch.zeros(n, 12))
+        assert target_error() < 1e-12
+        moved = max(moved, float(np.abs(env.sim.act.numpy()[:, act_adr]).max()))
+    assert moved > 0.05, "the references barely moved: the check above would be empty"
+
+
 @pytest.mark.parametrize("kp_f, kd_f", [(1.0, 0.025), (0.5, 0.01), (2.0, 0.04)], ids=["nominal", "test-soft", "test-stiff"])
 def test_position_drive_is_the_filter_of_its_gains(kp_f, kd_f):
     """The calibrated platform (no velocity feedforward) moves as M x'' = kp (x_ref - x) - kd x' per

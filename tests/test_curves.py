@@ -10,17 +10,21 @@ from torch.utils.tensorboard import SummaryWriter
 from lasmp.eval import curves
 
 
-@pytest.fixture
-def run_dir(tmp_path):
-    w = SummaryWriter(str(tmp_path))
-    for it in range(20):
+def write_run(path, iterations: int = 20, reward_scale: float = 2.0):
+    w = SummaryWriter(str(path))
+    for it in range(iterations):
         w.add_scalar("Episode/success_rate", it / 20, it)
         w.add_scalar("Curriculum/level", 5 + it // 10, it)
-        w.add_scalar("Train/mean_reward", 2.0 * it, it)
+        w.add_scalar("Train/mean_reward", reward_scale * it, it)
         w.add_scalar("Episode_Reward/task1_center", 0.1 * it, it)
         w.add_scalar("Loss/value_function", 1.0, it)  # not a curve we summarize
     w.close()
-    return tmp_path
+    return path
+
+
+@pytest.fixture
+def run_dir(tmp_path):
+    return write_run(tmp_path)
 
 
 def test_windows_average_the_main_tags_and_reward_terms(run_dir, capsys):
@@ -38,3 +42,21 @@ def test_windows_average_the_main_tags_and_reward_terms(run_dir, capsys):
 def test_a_directory_without_event_files_is_an_error(tmp_path, capsys):
     assert curves.main([str(tmp_path), "--json"]) == 2
     assert "no TensorBoard event files" in capsys.readouterr().err
+
+
+def test_several_runs_are_compared_at_one_budget(tmp_path, capsys):
+    a, b = write_run(tmp_path / "a"), write_run(tmp_path / "b", iterations=30, reward_scale=3.0)
+    out = tmp_path / "compare.png"
+    argv = [str(a), str(b), "--labels", "A", "B", "--last-iteration", "14", "--every", "10", "--out", str(out), "--json"]
+    assert curves.main(argv) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    runs = json.loads(capsys.readouterr().out)["runs"]
+    assert [r["label"] for r in runs] == ["A", "B"]
+    for run, scale in zip(runs, (2.0, 3.0), strict=True):  # both cut after iteration 14
+        assert [w["iterations"] for w in run["windows"]] == [[0, 9], [10, 14]]
+        assert run["windows"][1]["Train/mean_reward"] == pytest.approx(scale * 12.0)
+
+
+def test_labels_must_match_the_runs(tmp_path):
+    with pytest.raises(SystemExit):
+        curves.main([str(write_run(tmp_path / "a")), "--labels", "A", "B"])

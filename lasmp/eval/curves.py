@@ -1,11 +1,16 @@
 """Learning curves of a training run from its TensorBoard logs: a PNG and a JSON summary.
 
     python -m lasmp.eval.curves RUN_DIR --out curve.png [--json] [--every 50]
+    python -m lasmp.eval.curves RUN_DIR RUN_DIR... --labels A B... --out compare.png [--last-iteration 449]
 
 Panels: success rate (episodes that reach T without a collision) and curriculum level N; mean
 episode reward and length; the per-term episode rewards (`Episode_Reward/<term>`), so the terms
 that dominate are visible. `--json` prints, every `--every` iterations, the mean over that window
 of success rate, level, reward, episode length and every reward term.
+
+Given several runs, one figure compares them: the four main panels with one smoothed curve per run
+(`--last-iteration` cuts every run there, to compare runs at one budget), and `--json` gives each
+run's windows.
 """
 
 from __future__ import annotations
@@ -45,7 +50,7 @@ def read_scalars(run_dir: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray]
 
 def windows(scalars: dict, every: int) -> list[dict]:
     """Means over consecutive windows of `every` iterations of the main tags and reward terms."""
-    last = max(int(it.max()) for it, _ in scalars.values())
+    last = max(int(it.max()) for it, _ in scalars.values() if len(it))
     out = []
     for lo in range(0, last + 1, every):
         row = {"iterations": [lo, min(lo + every, last + 1) - 1]}
@@ -58,26 +63,57 @@ def windows(scalars: dict, every: int) -> list[dict]:
     return out
 
 
-def plot(scalars: dict, out: str | Path, title: str) -> None:
+def smoothed(it: np.ndarray, v: np.ndarray, points: int = 50) -> tuple[np.ndarray, np.ndarray]:
+    """A running mean over about len(v) / points iterations (at least 1)."""
+    k = max(1, len(v) // points)
+    return it[k - 1 :], np.convolve(v, np.ones(k) / k, mode="valid")
+
+
+def truncated(scalars: dict, last_iteration: int | None) -> dict:
+    """The scalars of iterations <= last_iteration (all if None)."""
+    if last_iteration is None:
+        return scalars
+    return {t: (it[it <= last_iteration], v[it <= last_iteration]) for t, (it, v) in scalars.items()}
+
+
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def plot_comparison(runs: dict[str, dict], out: str | Path, title: str) -> None:
+    """One panel per main tag, one smoothed curve per run (label -> scalars)."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 4, figsize=(20, 4.5))
+    for ax, (tag, label) in zip(axes.flat, MAIN_TAGS.items(), strict=True):
+        for name, scalars in runs.items():
+            if tag in scalars and len(scalars[tag][0]):
+                ax.plot(*smoothed(*scalars[tag]), lw=1.3, label=name)
+        ax.set(xlabel="iteration", title=label)
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    atomic_write_with(out, lambda tmp: fig.savefig(tmp, dpi=80, format="png"))
+    plt.close(fig)
+
+
+def plot(scalars: dict, out: str | Path, title: str) -> None:
+    plt = _pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(16, 8))
     for ax, (tag, label) in zip(axes.flat[:4], MAIN_TAGS.items(), strict=True):
         if tag in scalars:
             it, v = scalars[tag]
             ax.plot(it, v, lw=0.6, alpha=0.4)
-            k = max(1, len(v) // 50)
-            ax.plot(it[k - 1 :], np.convolve(v, np.ones(k) / k, mode="valid"), lw=1.5)
+            ax.plot(*smoothed(it, v), lw=1.5)
         ax.set(xlabel="iteration", title=label)
     ax = axes.flat[4]
     terms = sorted(t for t in scalars if t.startswith("Episode_Reward/"))
     for tag in terms:
-        it, v = scalars[tag]
-        k = max(1, len(v) // 50)
-        ax.plot(it[k - 1 :], np.convolve(v, np.ones(k) / k, mode="valid"), label=tag.split("/", 1)[1])
+        ax.plot(*smoothed(*scalars[tag]), label=tag.split("/", 1)[1])
     ax.set(xlabel="iteration", title="episode reward per term")
     ax.legend(fontsize=6, ncol=2)
     axes.flat[5].axis("off")
@@ -89,23 +125,35 @@ def plot(scalars: dict, out: str | Path, title: str) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m lasmp.eval.curves", description=__doc__.split("\n")[0])
-    ap.add_argument("run_dir")
+    ap.add_argument("run_dirs", nargs="+", metavar="run_dir", help="one run, or several to compare")
+    ap.add_argument("--labels", nargs="+", help="one name per run (default: the directories)")
+    ap.add_argument("--last-iteration", type=int, help="leave out the iterations after this one")
     ap.add_argument("--out", help="write the learning-curve PNG here")
     ap.add_argument("--json", action="store_true", help="print the windowed means as one JSON object")
     ap.add_argument("--every", type=int, default=50, help="window, iterations")
     args = ap.parse_args(argv)
     if args.every < 1:
         ap.error("--every must be >= 1")
+    labels = args.labels or args.run_dirs
+    if len(labels) != len(args.run_dirs):
+        ap.error(f"--labels gives {len(labels)} names for {len(args.run_dirs)} runs")
     try:
-        scalars = read_scalars(args.run_dir)
+        runs = {name: truncated(read_scalars(d), args.last_iteration) for name, d in zip(labels, args.run_dirs, strict=True)}
     except FileNotFoundError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if args.out:
-        plot(scalars, args.out, str(args.run_dir))
+        if len(runs) == 1:
+            plot(next(iter(runs.values())), args.out, str(args.run_dirs[0]))
+        else:
+            plot_comparison(runs, args.out, ", ".join(labels))
         print(f"wrote {args.out}", file=sys.stderr)
     if args.json:
-        print(json.dumps({"run_dir": str(args.run_dir), "windows": windows(scalars, args.every)}))
+        if len(runs) == 1:
+            print(json.dumps({"run_dir": str(args.run_dirs[0]), "windows": windows(runs[labels[0]], args.every)}))
+        else:
+            print(json.dumps({"runs": [{"label": name, "run_dir": str(d), "windows": windows(runs[name], args.every)}
+                                       for name, d in zip(labels, args.run_dirs, strict=True)]}))  # fmt: skip
     return 0
 
 

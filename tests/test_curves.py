@@ -60,3 +60,5 @@ def test_several_runs_are_compared_at_one_budget(tmp_path, capsys):
 def test_labels_must_match_the_runs(tmp_path):
     with pytest.raises(SystemExit):
         curves.main([str(write_run(tmp_path / "a")), "--labels", "A", "B"])
+    with pytest.raises(SystemExit):
+        curves.main([str(tmp_path / "a"), str(write_run(tmp_path / "b")), "--labels", "A", "A"])

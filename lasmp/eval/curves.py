@@ -137,6 +137,8 @@ def main(argv=None) -> int:
     labels = args.labels or args.run_dirs
     if len(labels) != len(args.run_dirs):
         ap.error(f"--labels gives {len(labels)} names for {len(args.run_dirs)} runs")
+    if len(set(labels)) != len(labels):
+        ap.error(f"the runs need distinct labels, got {labels}")
     try:
         runs = {name: truncated(read_scalars(d), args.last_iteration) for name, d in zip(labels, args.run_dirs, strict=True)}
     except FileNotFoundError as exc:

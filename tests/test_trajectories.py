@@ -444,6 +444,9 @@ def test_device_copy_evaluates_as_the_host_set_and_takes_new_rows():
         pos_d, vel_d = dev.evaluate(torch.from_numpy(t), torch.from_numpy(rows))
         np.testing.assert_array_equal(pos_d.numpy(), pos)
         np.testing.assert_array_equal(vel_d.numpy(), vel)
+        pos_only, none = dev.evaluate(torch.from_numpy(t), torch.from_numpy(rows), velocity=False)
+        assert none is None
+        np.testing.assert_array_equal(pos_only.numpy(), pos)
 
     check()
     longer = T.sample(2, ranges, rng, n_waypoints=15)  # more segments than the set holds

@@ -138,14 +138,15 @@ class MovingPlatformEnv(BaseEnv):
         # (10 % of a step's physics)
         n, dt = self.num_envs, self.dt_s
         t_s = self.episode_length_buf.to(self.dtype) * dt
-        times = torch.cat([t_s + dt, t_s + 0.5 * dt])  # one evaluation for both
-        pose, vel = self.traj_dev.evaluate(times, self._rows2)
-        x_next = pose[:n, self.pose_to_joint]
-        ctrl[:, self._plf_pos_ctrl] = (x_next - self.sim.act[:, self._plf_act]) / dt
         if self.cfg.platform.velocity_feedforward:
+            times = torch.cat([t_s + dt, t_s + 0.5 * dt])  # one evaluation for both
+            pose, vel = self.traj_dev.evaluate(times, self._rows2)
             ctrl[:, self._plf_vel_ctrl] = vel[n:, self.pose_to_joint]
         else:
+            pose, _ = self.traj_dev.evaluate(t_s + dt, self._rows2[:n], velocity=False)
             ctrl[:, self._plf_vel_ctrl] = 0.0
+        x_next = pose[:n, self.pose_to_joint]
+        ctrl[:, self._plf_pos_ctrl] = (x_next - self.sim.act[:, self._plf_act]) / dt
 
     # -- evaluation ----------------------------------------------------------------------------
     def _fell(self, r: Readout) -> torch.Tensor:

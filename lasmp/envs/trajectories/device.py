@@ -40,10 +40,12 @@ class DevicePoly:
         self.coeffs[rows, :s_new, :d_new] = self._t(new.coeffs)
         self.n_segments[rows] = torch.as_tensor(new.n_segments, device=self.device)
 
-    def evaluate(self, t_s: torch.Tensor, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def evaluate(
+        self, t_s: torch.Tensor, rows: torch.Tensor, velocity: bool = True
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
         """Pose and velocity (k, 6) each of rows `rows` (k,) at times `t_s` (k,); at and after a row's
         end, its final pose with zero velocity (`PiecewisePoly.evaluate` on the device, without the
-        acceleration, which the step does not use)."""
+        acceleration, which the step does not use). With velocity=False, (pose, None)."""
         ns = self.n_segments.index_select(0, rows)
         b = self.breaks_s.index_select(0, rows)  # (k, S+1)
         t_end = b.gather(1, ns[:, None])[:, 0]
@@ -60,8 +62,10 @@ class DevicePoly:
         c = torch.index_select(self.coeffs.view(m * s, d1, 6), 0, rows * s + seg, out=self._gathered)
         # Horner with the derivative: pos = sum c_j tau^j, vel = its derivative (in place, the same
         # arithmetic as vel = vel * tau + pos; pos = pos * tau + c_j)
-        pos, vel = c[:, -1].clone(), torch.zeros_like(c[:, 0])
+        pos = c[:, -1].clone()
+        vel = torch.zeros_like(pos) if velocity else None
         for j in range(d1 - 2, -1, -1):
-            vel.mul_(tau).add_(pos)
+            if velocity:
+                vel.mul_(tau).add_(pos)
             pos.mul_(tau).add_(c[:, j])
-        return pos, vel.masked_fill_(past[:, None], 0.0)
+        return pos, vel.masked_fill_(past[:, None], 0.0) if velocity else None

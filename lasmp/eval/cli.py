@@ -8,6 +8,7 @@
     options: --benchmark FILE (default benchmarks/xi_eval.npz, made on first use)
              --trajectories FILE (any trajectory file; robots still come from the benchmark)
              --num-trajectories K (the first K episodes) --out DIR --batch-envs 1024 --seed 0
+             --torch-threads 1 (the policy's CPU threads)
     suite options: --robots-per-scenario R (default 64) --platform-drive close|paper --scenarios NAME ...
 
 Writes DIR/metrics.json and DIR/metrics.md (definitions: lasmp/eval/metrics.py and README).
@@ -149,7 +150,13 @@ def main(argv=None) -> int:
     p.add_argument("--platform-drive", choices=["close", "paper"], default=None,
                    help="with --suite: the platform follows the scenario closely (default) or through the "
                         "paper's soft drive")  # fmt: skip
+    p.add_argument("--torch-threads", type=int, default=1,
+                   help="torch's CPU threads for the policy (default 1: its per-step networks are small, and more "
+                        "threads contend with the physics thread pool, on a shared machine badly)")  # fmt: skip
     args = p.parse_args(argv)
+    if args.torch_threads < 1:
+        p.error(f"--torch-threads must be >= 1, got {args.torch_threads}")
+    torch.set_num_threads(args.torch_threads)
     if args.controller == "stand_still" and args.checkpoint:
         p.error("--controller stand_still takes no --checkpoint")
     if args.controller != "stand_still" and not args.checkpoint:

@@ -298,3 +298,11 @@ def test_results_table_rows_and_refusals(tmp_path, capsys):
         rt.load_results([tmp_path / "missing"])
     with pytest.raises(ValueError, match="2 labels for 1 results"):
         rt.load_results([dirs[0]], ["a", "b"])
+
+
+def test_evaluate_refuses_a_thread_count_below_one(capsys):
+    from lasmp.eval import cli
+
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["--controller", "stand_still", "--torch-threads", "0"])
+    assert exit_info.value.code == 2 and "--torch-threads must be >= 1, got 0" in capsys.readouterr().err

@@ -7,7 +7,12 @@ velocities), the contacts only, the velocities only (body and platform velocitie
 rebuild u_aln), the implicit latent l_imp, and x_exp plus l_imp (= the privileged inputs). Prints
 one JSON object: the share of episodes that end in a collision or fall, per mode.
 
+With `--benchmark-episodes K`, the platform plays the first K trajectories of Xi_eval instead
+(one episode per env, the env's default platform drive, robots drawn from the testing ranges):
+where estimation costs the moving-platform task.
+
     python bench/deployment_gap.py --checkpoint runs/lasmp_v2_seed0 --num-envs 128
+    python bench/deployment_gap.py --checkpoint runs/lasmp_v2_seed0 --benchmark-episodes 256 --modes "" v xl
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import numpy as np
 import torch
 
 from lasmp.envs import trajectories as trj
+from lasmp.eval import benchmark as bm
 from lasmp.eval.real_motion import suite as rm
 from lasmp.eval.real_motion.motion import Motion, time_grid, to_trajectories
 from lasmp.modules.obs_groups import GYRO_Z_COL
@@ -38,9 +44,14 @@ MODES = {
 }
 
 
-def collision_rate(checkpoint: str, path: str, duration_s: float, n: int, seed: int, truth: str) -> float:
-    env, pol, _ = load_deploy_policy(checkpoint, num_envs=n, seed=seed, trajectories=path,
-                                     env_overrides=rm.env_overrides(duration_s, "close"))  # fmt: skip
+BENCHMARK_ENV = {"domain_rand": {"split": "test"}, "curriculum": {"enabled": False}}  # as evaluate.py's
+
+
+def collision_rate(checkpoint: str, path: str, duration_s: float | None, n: int, seed: int, truth: str) -> float:
+    """Share of the n envs' first episodes that end in a collision or fall; duration_s None: the
+    trajectory file is benchmark episodes, played with the env's own episode length and drive."""
+    overrides = BENCHMARK_ENV if duration_s is None else rm.env_overrides(duration_s, "close")
+    env, pol, _ = load_deploy_policy(checkpoint, num_envs=n, seed=seed, trajectories=path, env_overrides=overrides)
     estimated = pol._estimated_inputs
     current = {}
 
@@ -81,14 +92,26 @@ def main(argv=None) -> dict:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--modes", nargs="+", choices=list(MODES.values()), default=list(MODES.values()),
                     help="truth substituted: '' none, x, c, v, l, xl (default: all six)")  # fmt: skip
+    ap.add_argument("--benchmark-episodes", type=int, default=None,
+                    help="play the first K Xi_eval trajectories (one per env) instead of a still platform")
+    ap.add_argument("--benchmark", default="benchmarks/xi_eval.npz")
     args = ap.parse_args(argv)
-    t = time_grid(args.duration_s)
     with tempfile.TemporaryDirectory() as tmp:
-        path = str(Path(tmp) / "still.npz")
-        trj.save(path, to_trajectories([Motion("still", t, np.zeros((len(t), 6)))]))
-        out = {"checkpoint": args.checkpoint, "num_envs": args.num_envs, "duration_s": args.duration_s}
+        path = str(Path(tmp) / "trajectories.npz")
+        if args.benchmark_episodes is None:
+            n, duration_s = args.num_envs, args.duration_s
+            t = time_grid(duration_s)
+            trj.save(path, to_trajectories([Motion("still", t, np.zeros((len(t), 6)))]))
+            out = {"checkpoint": args.checkpoint, "num_envs": n, "duration_s": duration_s}
+        else:
+            bench = bm.load(args.benchmark)
+            if not 1 <= args.benchmark_episodes <= len(bench.trajectories):
+                ap.error(f"--benchmark-episodes must be in [1, {len(bench.trajectories)}]")
+            n, duration_s = args.benchmark_episodes, None
+            trj.save(path, bench.trajectories.subset(np.arange(n)))
+            out = {"checkpoint": args.checkpoint, "benchmark": args.benchmark, "episodes": n}
         out["collision_rate"] = {
-            label: collision_rate(args.checkpoint, path, args.duration_s, args.num_envs, args.seed, truth)
+            label: collision_rate(args.checkpoint, path, duration_s, n, args.seed, truth)
             for label, truth in MODES.items()
             if truth in args.modes
         }

@@ -62,3 +62,5 @@ def test_labels_must_match_the_runs(tmp_path):
         curves.main([str(write_run(tmp_path / "a")), "--labels", "A", "B"])
     with pytest.raises(SystemExit):
         curves.main([str(tmp_path / "a"), str(write_run(tmp_path / "b")), "--labels", "A", "A"])
+    with pytest.raises(SystemExit):  # nothing would be left to plot
+        curves.main([str(tmp_path / "a"), "--last-iteration", "-1"])

@@ -134,6 +134,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.every < 1:
         ap.error("--every must be >= 1")
+    if args.last_iteration is not None and args.last_iteration < 0:
+        ap.error(f"--last-iteration must be >= 0, got {args.last_iteration}")
     labels = args.labels or args.run_dirs
     if len(labels) != len(args.run_dirs):
         ap.error(f"--labels gives {len(labels)} names for {len(args.run_dirs)} runs")

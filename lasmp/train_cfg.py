@@ -78,6 +78,8 @@ class AlgoCfg:
     estimate_rollout_every: int = 2
     estimate_rollout_start: int = 100
     fused_adam: bool = False  # (ours) both Adams as one fused kernel (bench/train_iteration.py)
+    # rsl_rl's bfloat16 autocast of the PPO update's forward pass, extended to the ROA pass
+    use_mixed_precision: bool = False
 
 
 @dataclass

@@ -16,6 +16,7 @@ from omegaconf import OmegaConf
 
 from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint, read_checkpoint
 from lasmp.config import ConfigError
+from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
 from lasmp.train import make_runner, to_train_cfg, train
 from lasmp.train_cfg import register_configs
 
@@ -287,3 +288,88 @@ def test_rough_static_task_trains_the_rs_policy(tmp_path):
     assert actor.backbone_input_dim == 44 + 7 + 3 + 16
     data = read_checkpoint(tmp_path)
     assert data["config"]["task"] == "rough_static" and "command" in data["obs_layout"]
+
+
+def test_an_iteration_on_the_estimates_computes_them_once_with_the_values_of_a_mini_batch_pass(tmp_path):
+    runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 1, "estimate_rollout_start": 0}), None)
+    alg, actor = runner.alg, runner.alg.get_policy()
+    alg.rollout_on_estimates(0)
+    rollout(runner)
+    sample = alg.storage.observations.flatten(0, 1)
+    with torch.no_grad():
+        per_batch = actor.get_latent(sample)  # computes the estimates itself
+        sample[GROUP_DETACHED_ESTIMATES] = actor.detached_estimates(sample)
+        cached = actor.get_latent(sample)
+    torch.testing.assert_close(cached, per_batch, rtol=1e-5, atol=1e-5)
+    calls = []
+    real = actor.detached_estimates
+    actor.detached_estimates = lambda obs: calls.append(obs.batch_size) or real(obs)
+    alg.update_roa = lambda: {}
+    alg.update()
+    assert calls == [torch.Size([alg.storage.num_transitions_per_env * runner.env.num_envs])]
+    assert GROUP_DETACHED_ESTIMATES not in alg.storage.observations.keys()  # the next rollout writes without it
+    alg.rollout_on_estimates(1)
+    actor.act_on_estimates = False
+    alg.update()
+    assert len(calls) == 1  # a privileged iteration computes none
+
+
+def test_the_roa_pass_logs_the_errors_of_its_own_forward_passes(tmp_path):
+    # with the estimators' learning rate and λ at 0 nothing moves in the pass, so the mean of its
+    # mini-batches' errors is the error over the whole rollout
+    runner = make_runner(tiny(tmp_path, algo={"roa_lambda": 0.0}), None)
+    alg, actor = runner.alg, runner.alg.get_policy()
+    for group in alg.estimator_optimizer.param_groups:
+        group["lr"] = 0.0
+    rollout(runner)
+    expected = actor.estimation_errors(alg.storage.observations.flatten(0, 1))
+    logged = type(alg).update_roa(alg)
+    assert {f"Estimator/{k}" for k in expected} <= set(logged)
+    for name, value in expected.items():
+        assert logged[f"Estimator/{name}"] == pytest.approx(value, rel=1e-5, abs=1e-6)
+
+
+def test_mixed_precision_runs_ppo_and_roa_under_bfloat16_autocast(tmp_path):
+    runner = make_runner(tiny(tmp_path, algo={"use_mixed_precision": True}), None)
+    alg, actor = runner.alg, runner.alg.get_policy()
+    seen = []
+    real = actor.roa_losses
+
+    def spy(obs, lam):
+        seen.append(torch.is_autocast_enabled("cpu") and torch.get_autocast_dtype("cpu") == torch.bfloat16)
+        return real(obs, lam)
+
+    actor.roa_losses = spy
+    rollout(runner)
+    before = params(actor)
+    losses = alg.update()
+    assert seen and all(seen)
+    assert all(math.isfinite(v) for v in losses.values())
+    assert changed(before, actor, "mlp") and changed(before, actor, "implicit_estimator")
+
+
+@pytest.mark.parametrize(
+    ("policy", "on_estimates", "history_read"),
+    [({}, False, False), ({}, True, False), ({"history_input": True, "use_alignment": False}, False, True)],
+)
+def test_ppo_mini_batches_carry_the_history_only_where_the_actor_reads_it(
+    tmp_path, policy, on_estimates, history_read
+):
+    runner = make_runner(tiny(tmp_path, policy=policy), None)
+    alg, actor = runner.alg, runner.alg.get_policy()
+    rollout(runner)
+    actor.act_on_estimates = on_estimates
+    seen = []
+    real = actor.get_latent
+
+    def spy(obs, *args, **kwargs):
+        seen.append(set(obs.keys()))
+        return real(obs, *args, **kwargs)
+
+    actor.get_latent = spy
+    alg.update_roa = lambda: {}
+    alg.update()
+    assert seen and all((GROUP_HISTORY in keys) == history_read for keys in seen)
+    assert all((GROUP_DETACHED_ESTIMATES in keys) == on_estimates for keys in seen)
+    stored = set(alg.storage.observations.keys())
+    assert GROUP_HISTORY in stored and GROUP_DETACHED_ESTIMATES not in stored  # restored for the next rollout

@@ -14,7 +14,9 @@ encoder through PPO's optimizer, in a step of its own in which no other paramete
 gradient; lambda is constant (no ramp). Rollouts act with privileged inputs, except that from
 iteration `estimate_rollout_start` on, every `estimate_rollout_every`-th iteration (rollout and
 PPO update alike) acts on the estimators' detached outputs, as at deployment: the policy then
-learns to live with estimation errors (`rollout_on_estimates`, called by the runner).
+learns to live with estimation errors (`rollout_on_estimates`, called by the runner). Its PPO
+update computes those estimates once for the rollout: PPO's epochs change neither the estimators
+nor the normalizer, so they are the ones the rollout acted on.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ from itertools import chain
 import torch
 import torch.nn as nn
 from rsl_rl.algorithms import PPO
+
+from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
 
 
 class PPOROA(PPO):
@@ -66,37 +70,57 @@ class PPOROA(PPO):
         return on
 
     def update(self) -> dict[str, float]:
-        on_estimates = float(self.actor.act_on_estimates)
-        loss_dict = super().update()
+        on_estimates = self.actor.act_on_estimates
+        stored = self.storage.observations
+        # PPO's mini-batches gather only what the actor and critic read (a view: nothing is copied)
+        self.storage.observations = stored.exclude(*self._unread_by_ppo(on_estimates))
+        if on_estimates:  # once for the rollout, not once per mini-batch and epoch
+            flat = self._in_precision(self.actor.detached_estimates, stored.flatten(0, 1))
+            self.storage.observations[GROUP_DETACHED_ESTIMATES] = flat.view(*stored.batch_size, -1)
+        try:
+            loss_dict = super().update()
+        finally:
+            self.storage.observations = stored
         loss_dict.update(self.update_roa())
-        loss_dict["Policy/acts_on_estimates"] = on_estimates
+        loss_dict["Policy/acts_on_estimates"] = float(on_estimates)
         return loss_dict
 
+    def _unread_by_ppo(self, on_estimates: bool) -> list[str]:
+        """Observation groups PPO's update does not read: the history, unless the actor takes it
+        as an input (on the estimates it acts on `GROUP_DETACHED_ESTIMATES` instead)."""
+        critic_groups = set(self.critic.obs_groups)
+        if self.actor.reads_history(estimates_cached=on_estimates) or GROUP_HISTORY in critic_groups:
+            return []
+        return [GROUP_HISTORY]
+
+    def _in_precision(self, fn, *args):
+        """fn(*args) under the bfloat16 autocast of rsl_rl's PPO update when `use_mixed_precision`."""
+        device_type = torch.device(self.device).type
+        with torch.amp.autocast(device_type=device_type, enabled=self.use_mixed_precision, dtype=torch.bfloat16):
+            return fn(*args)
+
     def update_roa(self) -> dict[str, float]:
-        """One ROA pass over the stored rollout; returns the mean losses and estimation errors."""
-        sums: dict[str, float] = {}
+        """One ROA pass over the stored rollout; returns the mean losses, and the mean estimation
+        errors of its mini-batches, each measured before its own optimizer step."""
+        sums: dict[str, torch.Tensor] = {}
         count = 0
         for batch in self.storage.mini_batch_generator(self.num_mini_batches, self.estimator_epochs):
-            losses = self.actor.roa_losses(batch.observations, self.roa_lambda)
+            losses, errors = self._in_precision(self.actor.roa_losses, batch.observations, self.roa_lambda)
             total = sum(losses.values())
             self.optimizer.zero_grad()
             self.estimator_optimizer.zero_grad()
             total.backward()
             nn.utils.clip_grad_norm_(self._estimator_params, self.max_grad_norm)
             self.estimator_optimizer.step()
-            for (
-                p
-            ) in self._estimator_params:  # PPO's optimizer steps only what the λ term reaches: the encoder
+            for p in self._estimator_params:  # PPO's optimizer steps only what the λ term reaches: the encoder
                 p.grad = None
             self.optimizer.step()
-            for key, value in losses.items():
-                sums[f"roa_{key}"] = sums.get(f"roa_{key}", 0.0) + value.item()
+            logged = {f"roa_{k}": v.detach() for k, v in losses.items()}
+            logged.update({f"Estimator/{k}": v for k, v in errors.items()})
+            for key, value in logged.items():
+                sums[key] = sums.get(key, 0.0) + value.float()
             count += 1
-        out = {key: value / max(count, 1) for key, value in sums.items()}
-        with torch.no_grad():
-            sample = self.storage.observations.flatten(0, 1)
-            out.update({f"Estimator/{k}": v for k, v in self.actor.estimation_errors(sample).items()})
-        return out
+        return {key: float(value) / max(count, 1) for key, value in sums.items()}
 
     def save(self) -> dict:
         saved = super().save()

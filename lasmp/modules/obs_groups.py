@@ -17,6 +17,9 @@ GROUP_EXPLICIT = "priv_explicit"
 GROUP_IMPLICIT = "priv_implicit"
 GROUP_ALIGNMENT = "alignment"
 GROUP_COMMAND = "command"  # a velocity command [v_x, v_y, omega_z] in B (rough_static task)
+# not an env group: the estimates an iteration on the estimates acts on, added to the stored rollout
+# for its PPO update by PPOROA (LasmpActor.detached_estimates)
+GROUP_DETACHED_ESTIMATES = "detached_estimates"
 
 # o = [acc (3), gyro (3), ...] (lasmp/envs/robot.py: proprioception): measured yaw rate omega^B_body,z, rad/s
 GYRO_Z_COL = 5

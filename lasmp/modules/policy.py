@@ -16,6 +16,7 @@ from lasmp.modules.export import LasmpDeployPolicy
 from lasmp.modules.obs_groups import (
     GROUP_ALIGNMENT,
     GROUP_COMMAND,
+    GROUP_DETACHED_ESTIMATES,
     GROUP_EXPLICIT,
     GROUP_HISTORY,
     GROUP_IMPLICIT,
@@ -173,17 +174,45 @@ class LasmpActor(MLPModel):
         """Backbone input [norm(o, x_exp, u_aln), l_imp(, norm(o^H) flattened)], per `self.deploy`
         (or `self.act_on_estimates`: the estimates, detached)."""
         o = obs[GROUP_OBS]
-        history_n = self.normalize_history(obs[GROUP_HISTORY])
+        cached = not self.deploy and self.act_on_estimates and GROUP_DETACHED_ESTIMATES in obs.keys()
+        history_n = self.normalize_history(obs[GROUP_HISTORY]) if self.reads_history(cached) else None
         if self.deploy:
             x_exp, l_imp, u_aln = self._estimated_inputs(o, history_n)
+        elif cached:
+            x_exp, l_imp, u_aln = self.split_detached_estimates(obs[GROUP_DETACHED_ESTIMATES])
         elif self.act_on_estimates:
-            x_exp, l_imp, u_aln = (None if t is None else t.detach() for t in self._estimated_inputs(o, history_n))
+            with torch.no_grad():  # detached: PPO's gradients never reach the estimators
+                x_exp, l_imp, u_aln = self._estimated_inputs(o, history_n)
         else:
             x_exp, l_imp, u_aln = self._privileged_inputs(obs)
         parts = [self.obs_normalizer(self._normalized_part(o, x_exp, u_aln, obs)), l_imp]
         if self.history_input:
             parts.append(history_n.flatten(1))
         return torch.cat(parts, dim=-1)
+
+    def reads_history(self, estimates_cached: bool) -> bool:
+        """Whether `get_latent` reads the history group in the current mode; `estimates_cached`:
+        the observations carry `GROUP_DETACHED_ESTIMATES`."""
+        on_estimates = self.act_on_estimates and not estimates_cached
+        return self.deploy or on_estimates or self.history_input
+
+    @torch.no_grad()
+    def detached_estimates(self, obs: TensorDict) -> torch.Tensor:
+        """[x_exp_hat, l_imp_hat(, u_aln_hat)] in one (..., k) tensor, for `GROUP_DETACHED_ESTIMATES`.
+
+        PPO's epochs change neither the estimators nor the normalizer, so an iteration on the
+        estimates computes them once for its whole rollout instead of once per mini-batch and epoch.
+        """
+        o = obs[GROUP_OBS]
+        x_hat, l_hat, u_hat = self._estimated_inputs(o, self.normalize_history(obs[GROUP_HISTORY]))
+        return torch.cat([x_hat, l_hat] + ([u_hat] if u_hat is not None else []), dim=-1)
+
+    def split_detached_estimates(
+        self, estimates: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+        """The inverse of `detached_estimates`' concatenation."""
+        x_hat, l_hat, u_hat = estimates.split([self.num_explicit, self.latent_dim, self.num_alignment], dim=-1)
+        return x_hat, l_hat, (u_hat if self.use_alignment else None)
 
     def update_normalization(self, obs: TensorDict) -> None:
         """Update the model normalizer with the true [o, x_exp, u_aln] and the encoder's with x_imp."""
@@ -207,25 +236,30 @@ class LasmpActor(MLPModel):
         """Parameters of the implicit encoder h_theta."""
         return list(self.encoder.parameters())
 
-    def roa_losses(self, obs: TensorDict, lam: float) -> dict[str, torch.Tensor]:
+    def roa_losses(
+        self, obs: TensorDict, lam: float
+    ) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
         """ROA losses (SPEC §9); each squared error is summed over dims and averaged over the batch.
 
         - `exp`     = ||x_exp_hat - x_exp||^2 (raw units; grads only to the explicit estimator; 0 if none)
         - `imp_est` = ||l_imp_hat - sg[l_imp]||^2 (grads only to the implicit estimator)
         - `imp_reg` = lam * ||sg[l_imp_hat] - l_imp||^2 (grads only to the encoder)
+
+        Also returns the batch's estimation errors (`estimation_errors`, detached) from the same
+        forward pass, so that logging them costs no second pass over the rollout.
         """
         o = obs[GROUP_OBS]
-        history_n = self.normalize_history(obs[GROUP_HISTORY])
+        x_hat, l_hat, u_hat = self._estimated_inputs(o, self.normalize_history(obs[GROUP_HISTORY]))
         if self.explicit_estimator is not None:
-            x_true = obs[GROUP_EXPLICIT][:, : self.num_explicit]
-            exp = (self.explicit_estimator(history_n) - x_true).square().sum(-1).mean()
+            exp = (x_hat - obs[GROUP_EXPLICIT][:, : self.num_explicit]).square().sum(-1).mean()
         else:
             exp = o.new_zeros(())
         l_imp = self.encoder(obs[GROUP_IMPLICIT])
-        l_hat = self.implicit_estimator(history_n)
         imp_est = (l_hat - l_imp.detach()).square().sum(-1).mean()
         imp_reg = lam * (l_hat.detach() - l_imp).square().sum(-1).mean()
-        return {"exp": exp, "imp_est": imp_est, "imp_reg": imp_reg}
+        with torch.no_grad():
+            errors = self._errors(obs, x_hat, l_hat, u_hat, l_imp)
+        return {"exp": exp, "imp_est": imp_est, "imp_reg": imp_reg}, errors
 
     @property
     def estimation_names(self) -> tuple[str, ...]:
@@ -241,18 +275,28 @@ class LasmpActor(MLPModel):
     @torch.no_grad()
     def estimation_errors(self, obs: TensorDict) -> dict[str, float]:
         """Mean |x_exp_hat - x_exp| per named dim (and per u_aln dim), and mean ||l_imp_hat - l_imp||_2 (`l_imp_l2`)."""
-        o = obs[GROUP_OBS]
-        x_hat, l_hat, u_hat = self._estimated_inputs(o, self.normalize_history(obs[GROUP_HISTORY]))
-        out: dict[str, float] = {}
+        x_hat, l_hat, u_hat = self._estimated_inputs(
+            obs[GROUP_OBS], self.normalize_history(obs[GROUP_HISTORY])
+        )
+        errors = self._errors(obs, x_hat, l_hat, u_hat, self.encoder(obs[GROUP_IMPLICIT]))
+        return {name: float(e) for name, e in errors.items()}
+
+    def _errors(
+        self,
+        obs: TensorDict,
+        x_hat: torch.Tensor,
+        l_hat: torch.Tensor,
+        u_hat: torch.Tensor | None,
+        l_imp: torch.Tensor,
+    ) -> dict[str, torch.Tensor]:
+        """Batch means of the estimation errors, as 0-d tensors named as in `estimation_errors`."""
+        out: dict[str, torch.Tensor] = {}
         if self.num_explicit:
             err = (x_hat - obs[GROUP_EXPLICIT][:, : self.num_explicit]).abs().mean(0)
-            out.update(
-                {name: float(e) for name, e in zip(X_EXP_NAMES[: self.num_explicit], err, strict=True)}
-            )
+            out.update(zip(X_EXP_NAMES[: self.num_explicit], err.unbind(), strict=True))
         if u_hat is not None:
-            err = (u_hat - obs[GROUP_ALIGNMENT]).abs().mean(0)
-            out.update({name: float(e) for name, e in zip(U_ALN_NAMES, err, strict=True)})
-        out["l_imp_l2"] = float((l_hat - self.encoder(obs[GROUP_IMPLICIT])).norm(dim=-1).mean())
+            out.update(zip(U_ALN_NAMES, (u_hat - obs[GROUP_ALIGNMENT]).abs().mean(0).unbind(), strict=True))
+        out["l_imp_l2"] = (l_hat - l_imp).norm(dim=-1).mean()
         return out
 
     # ----------------------------------------------------------------- export

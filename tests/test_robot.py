@@ -12,7 +12,7 @@ import torch
 from lasmp.envs.moving_platform import env as moving_platform_env
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.envs.moving_platform.readout import Readout, read
-from lasmp.envs.robot import OBS_DIM, proprioception, read_robot, screen_faults
+from lasmp.envs.robot import OBS_DIM, as_slice, proprioception, read_robot, screen_faults, take_columns
 from lasmp.envs.rough_static import env as rough_static_env
 from lasmp.envs.rough_static.env import RoughStaticEnv
 from lasmp.modules.obs_groups import GYRO_Z_COL
@@ -67,3 +67,14 @@ def test_both_tasks_observe_the_robot_with_the_same_proprioception(envs):
         np.testing.assert_array_equal(o[:, GYRO_Z_COL], r.gyro_b[:, 2].numpy())  # the column the actor reads
         clip = env.cfg.observations.clip
         np.testing.assert_array_equal(obs["policy"].numpy(), np.clip(o, -clip, clip).astype(np.float32))
+
+
+def test_take_columns_copies_the_columns_as_a_slice_or_a_gather():
+    x = torch.arange(40.0, dtype=torch.float64).view(4, 10)
+    for index in (torch.tensor([2, 3, 4, 5]), torch.tensor([1, 3, 5]), torch.tensor([7, 2, 9])):
+        cols = as_slice(index)
+        assert isinstance(cols, slice) == (index.tolist() != [7, 2, 9])  # even runs become slices
+        taken = take_columns(x, cols)
+        assert torch.equal(taken, x.index_select(1, index))
+        x[:, index] += 100.0  # a copy, not a view of the live array
+        assert not torch.equal(taken, x.index_select(1, index))

@@ -13,7 +13,15 @@ from dataclasses import dataclass
 import mujoco
 import torch
 
-from lasmp.envs.robot import RobotIndex, RobotReadout, read_robot, sensor_columns, sensor_index
+from lasmp.envs.robot import (
+    RobotIndex,
+    RobotReadout,
+    as_slice,
+    read_robot,
+    sensor_columns,
+    sensor_index,
+    take_columns,
+)
 from lasmp.envs.rotations import mat_from_euler_zyx, rotate_inv
 from lasmp.envs.scene import PLATFORM_JOINTS
 from lasmp.robots import a1
@@ -42,6 +50,8 @@ class ReadoutIndex(RobotIndex):
         self.plf_angvel = sensor_columns(model, "plf_angvel")
         # (4, 3): per leg, the columns of its foot's linear-velocity sensor
         self.foot_linvel = sensor_index(model, [f"{leg}_foot_linvel" for leg in a1.LEG_NAMES], device)
+        self.plf_qpos_cols = as_slice(self.plf_qpos)
+        self.foot_linvel_cols = as_slice(self.foot_linvel.flatten())
 
 
 def read(sim, ix: ReadoutIndex, rows: torch.Tensor | None = None) -> Readout:
@@ -50,7 +60,7 @@ def read(sim, ix: ReadoutIndex, rows: torch.Tensor | None = None) -> Readout:
     qpos, sd, site_xpos = sim.qpos, sim.sensordata, sim.site_xpos
     if rows is not None:
         qpos, sd, site_xpos = (x[rows] for x in (qpos, sd, site_xpos))
-    plf = qpos.index_select(1, ix.plf_qpos)  # x, y, z, yaw, pitch, roll
+    plf = take_columns(qpos, ix.plf_qpos_cols)  # x, y, z, yaw, pitch, roll
     p_plf_w = plf[:, :3]
     r_wp = mat_from_euler_zyx(plf[:, 5], plf[:, 4], plf[:, 3])
     v_plf_w = sd[:, ix.plf_linvel].clone()
@@ -65,8 +75,8 @@ def read(sim, ix: ReadoutIndex, rows: torch.Tensor | None = None) -> Readout:
         [v_plf_b[:, :2] - robot.v_body_b[:, :2], omega_plf_b[:, 2:] - robot.omega_body_b[:, 2:]], dim=1
     )
 
-    p_feet_w = site_xpos.index_select(1, ix.foot_site)
-    v_feet_w = sd.index_select(1, ix.foot_linvel.flatten()).view(-1, 4, 3)
+    p_feet_w = take_columns(site_xpos, ix.foot_site_cols)
+    v_feet_w = take_columns(sd, ix.foot_linvel_cols).view(-1, 4, 3)
     v_surface_w = v_plf_w[:, None, :] + torch.linalg.cross(
         omega_plf_w[:, None, :].expand_as(p_feet_w), p_feet_w - p_plf_w[:, None, :]
     )

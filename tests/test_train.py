@@ -373,3 +373,16 @@ def test_ppo_mini_batches_carry_the_history_only_where_the_actor_reads_it(
     assert all((GROUP_DETACHED_ESTIMATES in keys) == on_estimates for keys in seen)
     stored = set(alg.storage.observations.keys())
     assert GROUP_HISTORY in stored and GROUP_DETACHED_ESTIMATES not in stored  # restored for the next rollout
+
+
+def test_compiled_mlps_train_and_save_the_same_parameter_names(tmp_path):
+    plain = make_runner(tiny(tmp_path), None)
+    compiled = make_runner(tiny(tmp_path, algo={"compile_mlps": True}), None)
+    alg = compiled.alg
+    assert alg.actor.mlp._compiled_call_impl is not None and alg.critic.mlp._compiled_call_impl is not None
+    assert plain.alg.actor.state_dict().keys() == alg.actor.state_dict().keys()
+    rollout(compiled)
+    before = params(alg.get_policy())
+    losses = alg.update()
+    assert all(math.isfinite(v) for v in losses.values()) and changed(before, alg.get_policy(), "mlp")
+    plain.alg.actor.load_state_dict(alg.actor.state_dict())  # a compiled run's checkpoint loads anywhere

@@ -42,9 +42,13 @@ class PPOROA(PPO):
         estimate_rollout_every: int = 0,
         estimate_rollout_start: int = 0,
         fused_adam: bool = False,
+        compile_mlps: bool = False,
         **kwargs,
     ) -> None:
         super().__init__(actor, critic, storage, **kwargs)
+        if compile_mlps:  # in place: the parameters and their state-dict names stay as they are
+            self.actor.mlp.compile()
+            self.critic.mlp.compile()
         if fused_adam:  # the same Adam in one fused kernel; on a CPU PyTorch otherwise loops per tensor
             self.optimizer = torch.optim.Adam(
                 chain(self.actor.parameters(), self.critic.parameters()), lr=self.learning_rate, fused=True

@@ -9,7 +9,7 @@ from rsl_rl.utils import resolve_callable
 from tensordict import TensorDict
 
 from lasmp.modules import HistoryEstimator, ImplicitEncoder, LasmpActor
-from lasmp.modules.obs_groups import X_EXP_NAMES, omega_plf_z, v_body_xy, v_plf_xy
+from lasmp.modules.obs_groups import GROUP_EXPLICIT, GROUP_IMPLICIT, X_EXP_NAMES, omega_plf_z, v_body_xy, v_plf_xy
 
 N, H, D = 6, 20, 44
 GROUPS = {"actor": ["policy", "history", "priv_explicit", "priv_implicit", "alignment"], "critic": ["critic"]}
@@ -227,10 +227,15 @@ def test_roa_loss_values():
 
 def test_estimation_errors():
     actor = make_actor()
-    errs = actor.estimation_errors(make_obs(seed=8))
+    obs = make_obs(seed=8)
+    _, errs = actor.roa_losses(obs, lam=0.5)
     for name in X_EXP_NAMES + ("l_imp_l2",):
-        assert name in errs and np.isfinite(errs[name]) and errs[name] > 0
-    small = make_actor(explicit="no_platform", use_alignment=False).estimation_errors(make_obs())
+        assert name in errs and np.isfinite(float(errs[name])) and float(errs[name]) > 0
+    x_hat, l_hat = actor.estimates(obs)
+    by_hand = (x_hat - obs[GROUP_EXPLICIT][:, : actor.num_explicit]).abs().mean(0)
+    torch.testing.assert_close(torch.stack([errs[n] for n in X_EXP_NAMES]), by_hand)
+    torch.testing.assert_close(errs["l_imp_l2"], (l_hat - actor.encoder(obs[GROUP_IMPLICIT])).norm(dim=-1).mean())
+    _, small = make_actor(explicit="no_platform", use_alignment=False).roa_losses(make_obs(), lam=0.5)
     assert "v_body_z" in small and "v_plf_x" not in small
 
 

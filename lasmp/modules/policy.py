@@ -245,8 +245,8 @@ class LasmpActor(MLPModel):
         - `imp_est` = ||l_imp_hat - sg[l_imp]||^2 (grads only to the implicit estimator)
         - `imp_reg` = lam * ||sg[l_imp_hat] - l_imp||^2 (grads only to the encoder)
 
-        Also returns the batch's estimation errors (`estimation_errors`, detached) from the same
-        forward pass, so that logging them costs no second pass over the rollout.
+        Also returns the batch's estimation errors (detached; see `_errors`) from the same forward
+        pass, so that logging them costs no second pass over the rollout.
         """
         o = obs[GROUP_OBS]
         x_hat, l_hat, u_hat = self._estimated_inputs(o, self.normalize_history(obs[GROUP_HISTORY]))
@@ -272,15 +272,6 @@ class LasmpActor(MLPModel):
         x_hat, l_hat, _ = self._estimated_inputs(obs[GROUP_OBS], self.normalize_history(obs[GROUP_HISTORY]))
         return x_hat, l_hat
 
-    @torch.no_grad()
-    def estimation_errors(self, obs: TensorDict) -> dict[str, float]:
-        """Mean |x_exp_hat - x_exp| per named dim (and per u_aln dim), and mean ||l_imp_hat - l_imp||_2 (`l_imp_l2`)."""
-        x_hat, l_hat, u_hat = self._estimated_inputs(
-            obs[GROUP_OBS], self.normalize_history(obs[GROUP_HISTORY])
-        )
-        errors = self._errors(obs, x_hat, l_hat, u_hat, self.encoder(obs[GROUP_IMPLICIT]))
-        return {name: float(e) for name, e in errors.items()}
-
     def _errors(
         self,
         obs: TensorDict,
@@ -289,7 +280,8 @@ class LasmpActor(MLPModel):
         u_hat: torch.Tensor | None,
         l_imp: torch.Tensor,
     ) -> dict[str, torch.Tensor]:
-        """Batch means of the estimation errors, as 0-d tensors named as in `estimation_errors`."""
+        """Batch means of the estimation errors as 0-d tensors: |x_exp_hat - x_exp| per named dim (and
+        per u_aln dim), and ||l_imp_hat - l_imp||_2 as `l_imp_l2`."""
         out: dict[str, torch.Tensor] = {}
         if self.num_explicit:
             err = (x_hat - obs[GROUP_EXPLICIT][:, : self.num_explicit]).abs().mean(0)

@@ -9,7 +9,14 @@ from rsl_rl.utils import resolve_callable
 from tensordict import TensorDict
 
 from lasmp.modules import HistoryEstimator, ImplicitEncoder, LasmpActor
-from lasmp.modules.obs_groups import GROUP_EXPLICIT, GROUP_IMPLICIT, X_EXP_NAMES, omega_plf_z, v_body_xy, v_plf_xy
+from lasmp.modules.obs_groups import (
+    GROUP_EXPLICIT,
+    GROUP_IMPLICIT,
+    X_EXP_NAMES,
+    omega_plf_z,
+    v_body_xy,
+    v_plf_xy,
+)
 
 N, H, D = 6, 20, 44
 GROUPS = {"actor": ["policy", "history", "priv_explicit", "priv_implicit", "alignment"], "critic": ["critic"]}

@@ -147,6 +147,23 @@ def test_foot_contacts_match_contact_forces():
     assert not r.foot_contact.any() and np.all(r.f_feet_w == 0.0)
 
 
+def test_reset_clears_the_previous_contacts_of_the_reset_envs_only():
+    """A reset env starts with no previous contact; the previous contacts are the env's own buffer,
+    not a view of the step's readout, whose reset rows are written anew with the envs' new state."""
+    env = make(4, domain_rand={"enabled": False})
+    static_platform(env)
+    env.reset()
+    for _ in range(30):
+        env.step(torch.zeros(4, 12))
+    assert env.contact_prev.all()  # standing
+    none = torch.zeros(1, dtype=torch.bool)
+    env._reset_envs(torch.tensor([1]), none, none)
+    env._observations()  # reads env 1's new state into the readout
+    env.readout.foot_contact[:] = True
+    assert not env.contact_prev[1].any()
+    assert env.contact_prev[[0, 2, 3]].all()
+
+
 def test_body_contact_terminates_and_is_not_a_time_out():
     env = make(2, domain_rand={"enabled": False})
     static_platform(env)

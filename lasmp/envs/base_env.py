@@ -187,15 +187,17 @@ class BaseEnv(VecEnv):
         """The TensorDict of `policy` (o), `history` and the other groups, float32: non-finite values
         replaced by 0 and counted (`nonfinite_obs_values`), every value clipped to +-observations.clip."""
         arrays = {"policy": o, **groups}
-        clip = self.cfg.observations.clip
-        tensors, finite = clip_observations(arrays, clip)
-        # one host sync; the exact count only when a sum is not finite (or so huge that it overflows:
-        # then the count says 0)
-        bad = 0 if bool(finite) else int(sum((~torch.isfinite(a)).sum() for a in arrays.values()))
+        # fast path, one host sync: a sum is finite when every value is (or so huge that it overflows:
+        # then the exact count below says 0)
+        sums = torch.stack([a.sum() for a in arrays.values()])
+        bad = 0 if bool(torch.isfinite(sums).all()) else int(sum((~torch.isfinite(a)).sum() for a in arrays.values()))
         self.nonfinite_obs_values = bad
-        if bad:
-            tensors = {key: torch.clamp(torch.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0), -clip, clip)
-                       .to(torch.float32) for key, value in arrays.items()}  # fmt: skip
+        clip = self.cfg.observations.clip
+        tensors = {}
+        for key, value in arrays.items():
+            if bad:
+                value = torch.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
+            tensors[key] = torch.clamp(value, -clip, clip).to(torch.float32)
         o_t = tensors["policy"]
         history = self.history
         if self._fresh is not None:
@@ -214,13 +216,6 @@ class BaseEnv(VecEnv):
         obs = self._observations()
         log["/faults/nonfinite_obs_values"] = float(self.nonfinite_obs_values)
         return obs
-
-
-def clip_observations(arrays: dict[str, torch.Tensor], clip: float) -> tuple[dict[str, torch.Tensor], torch.Tensor]:
-    """(each array clipped to +-clip, as float32; whether every value is finite, a 0-d bool tensor:
-    a sum is finite when every value is)."""
-    finite = torch.isfinite(torch.stack([a.sum() for a in arrays.values()])).all()
-    return {key: torch.clamp(value, -clip, clip).to(torch.float32) for key, value in arrays.items()}, finite
 
 
 def _on_device(value, device):

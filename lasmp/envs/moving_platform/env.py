@@ -31,7 +31,7 @@ from lasmp.envs.moving_platform.domain_rand import (
 )
 from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read
 from lasmp.envs.moving_platform.rewards import RewardManager, RewardParams
-from lasmp.envs.moving_platform.state import StepState, step_state
+from lasmp.envs.moving_platform.state import StepState
 from lasmp.envs.robot import as_slice, proprioception, screen_faults, update_rows
 from lasmp.envs.rotations import yaw_quat
 from lasmp.envs.scene import (
@@ -159,12 +159,43 @@ class MovingPlatformEnv(BaseEnv):
         r, faulted = screen_faults(read(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
         self.readout = r
         fell = self._fell(r)
-        state, self.t_air_s, self.t_contact_s = step_state(
-            r, fell, self.action, self.action_prev, self.tau_prev, self.q_dot_prev, self.contact_prev,
-            self.t_air_s, self.t_contact_s, self.dt_s,
-        )  # fmt: skip
-        self.contact_prev = state.contact.clone()  # not the readout's own: its reset rows are read anew
-        collision = state.collision
+        collision = r.body_collision | fell
+        dt = self.dt_s
+        contact = r.foot_contact
+        touchdown = contact & ~self.contact_prev
+        liftoff = ~contact & self.contact_prev
+        self.t_air_s += dt * (~contact).to(self.dtype)
+        self.t_contact_s += dt * contact.to(self.dtype)
+        t_air_ended = torch.where(touchdown, self.t_air_s, 0.0)
+        t_contact_ended = torch.where(liftoff, self.t_contact_s, 0.0)
+        self.t_air_s.masked_fill_(contact, 0.0)
+        self.t_contact_s.masked_fill_(~contact, 0.0)
+        self.contact_prev = contact.clone()  # not the readout's own: its reset rows are read anew
+        f32 = torch.float32  # rewards are computed in float32 on every backend
+        state = StepState(
+            dt_s=dt,
+            p_body_p=r.p_body_p.to(f32),
+            phi_body_w=r.phi_body_w.to(f32),
+            v_body_b=r.v_body_b.to(f32),
+            omega_body_b=r.omega_body_b.to(f32),
+            v_plf_b=r.v_plf_b.to(f32),
+            omega_plf_b=r.omega_plf_b.to(f32),
+            u_aln=r.u_aln.to(f32),
+            action=self.action.to(f32),
+            action_prev=self.action_prev.to(f32),
+            tau=r.tau.to(f32),
+            tau_prev=self.tau_prev.to(f32),
+            q_dot=r.q_dot.to(f32),
+            q_ddot=((r.q_dot - self.q_dot_prev) / dt).to(f32),
+            f_feet_w=r.f_feet_w.to(f32),
+            contact=contact,
+            touchdown=touchdown,
+            liftoff=liftoff,
+            t_air_s=t_air_ended.to(f32),
+            t_contact_s=t_contact_ended.to(f32),
+            v_slip_p=r.v_slip_p.to(f32),
+            collision=collision,
+        )
         self.last_state = state
         reward = self.rewards.compute(state)
         self.tau_prev.copy_(r.tau)
@@ -255,7 +286,11 @@ class MovingPlatformEnv(BaseEnv):
             self.readout = read(self.sim, self.index)
         elif self._fresh is not None:
             update_rows(self.readout, self._fresh, read(self.sim, self.index, self._fresh))
-        o, groups = observation_arrays(self.readout, self.action, self.q_nominal, self.x_imp)
+        r = self.readout
+        o = proprioception(r, self.action, self.q_nominal)
+        x_exp = torch.cat([r.foot_contact.to(self.dtype), r.v_body_b, r.v_plf_b, r.omega_plf_b], dim=1)
+        critic = torch.cat([o, x_exp, self.x_imp, r.u_aln, r.p_body_p, r.phi_body_w], dim=1)
+        groups = {"priv_explicit": x_exp, "priv_implicit": self.x_imp, "alignment": r.u_aln, "critic": critic}
         return self._package_observations(o, groups)
 
     # -- checkpoint state ----------------------------------------------------------------------
@@ -269,13 +304,3 @@ class MovingPlatformEnv(BaseEnv):
     def _load_task_state(self, d: dict) -> None:
         if self.curriculum is not None and d.get("curriculum") is not None:
             self.curriculum.load_state_dict(d["curriculum"])
-
-
-def observation_arrays(
-    r: Readout, last_action: torch.Tensor, q_nominal: torch.Tensor, x_imp: torch.Tensor
-) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-    """(o, the other groups but the history) of every env, in the physics dtype (module docstring)."""
-    o = proprioception(r, last_action, q_nominal)
-    x_exp = torch.cat([r.foot_contact.to(o.dtype), r.v_body_b, r.v_plf_b, r.omega_plf_b], dim=1)
-    critic = torch.cat([o, x_exp, x_imp, r.u_aln, r.p_body_p, r.phi_body_w], dim=1)
-    return o, {"priv_explicit": x_exp, "priv_implicit": x_imp, "alignment": r.u_aln, "critic": critic}

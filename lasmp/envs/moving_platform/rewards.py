@@ -201,19 +201,13 @@ class RewardManager:
         self._weights = [w for _, w in active]
         self._episode_sums = torch.zeros(len(active), num_envs, device=self.device)
 
-    def _terms(self, state) -> tuple[torch.Tensor, torch.Tensor]:
-        """((K, n) weighted, dt-scaled terms; (n,) their sum, added in the terms' order)."""
-        terms = [fn(state, self.params) * (w * state.dt_s) for fn, w in zip(self._fns, self._weights, strict=True)]
-        total = torch.zeros(self.num_envs, device=self.device)
-        for r in terms:
-            total = total + r
-        stacked = torch.stack(terms) if terms else torch.zeros((0, self.num_envs), device=self.device)
-        return stacked, total
-
     def compute(self, state: StepState) -> torch.Tensor:
         """Total reward Σ_k w_k · term_k · dt_s, shape (num_envs,)."""
-        terms, total = self._terms(state)
-        self._episode_sums += terms
+        total = torch.zeros(self.num_envs, device=self.device)
+        for i, (fn, w) in enumerate(zip(self._fns, self._weights, strict=True)):
+            r = fn(state, self.params) * (w * state.dt_s)
+            self._episode_sums[i] += r
+            total += r
         return total
 
     def reset(self, env_ids: torch.Tensor | Sequence[int] | None = None) -> dict[str, float]:

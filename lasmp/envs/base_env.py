@@ -183,21 +183,22 @@ class BaseEnv(VecEnv):
         log["Episode/length_s"] = float(self.episode_length_buf[done].float().mean()) * self.dt_s
         return log
 
-    def _package_observations(self, o: torch.Tensor, groups: dict[str, torch.Tensor]) -> TensorDict:
-        """The TensorDict of `policy` (o), `history` and the other groups, float32: non-finite values
-        replaced by 0 and counted (`nonfinite_obs_values`), every value clipped to +-observations.clip."""
-        arrays = {"policy": o, **groups}
+    def _package_observations(self, full: torch.Tensor, groups: dict[str, slice]) -> TensorDict:
+        """The TensorDict of the observation groups and `history`, float32, from `full` (n, k): one
+        array of which every group, `policy` (o) included, is a run of columns (`groups`: name ->
+        slice, see `column_runs`; the critic's group is usually all of it). Non-finite values are
+        replaced by 0 and counted (`nonfinite_obs_values`, each value of `full` once), every value
+        is clipped to +-observations.clip. The groups are column views of one new float32 array:
+        one check, one clip and one conversion for all of them."""
         # fast path, one host sync: a sum is finite when every value is (or so huge that it overflows:
         # then the exact count below says 0)
-        sums = torch.stack([a.sum() for a in arrays.values()])
-        bad = 0 if bool(torch.isfinite(sums).all()) else int(sum((~torch.isfinite(a)).sum() for a in arrays.values()))
+        bad = 0 if bool(torch.isfinite(full.sum())) else int((~torch.isfinite(full)).sum())
         self.nonfinite_obs_values = bad
+        if bad:
+            full = torch.nan_to_num(full, nan=0.0, posinf=0.0, neginf=0.0)
         clip = self.cfg.observations.clip
-        tensors = {}
-        for key, value in arrays.items():
-            if bad:
-                value = torch.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
-            tensors[key] = torch.clamp(value, -clip, clip).to(torch.float32)
+        full_t = torch.clamp(full, -clip, clip).to(torch.float32)
+        tensors = {key: full_t[:, cols] for key, cols in groups.items()}
         o_t = tensors["policy"]
         history = self.history
         if self._fresh is not None:
@@ -216,6 +217,17 @@ class BaseEnv(VecEnv):
         obs = self._observations()
         log["/faults/nonfinite_obs_values"] = float(self.nonfinite_obs_values)
         return obs
+
+
+def column_runs(widths: dict[str, int], whole: str) -> dict[str, slice]:
+    """{name: slice} of consecutive column runs of the given widths, in order, and `whole`: every
+    column (the group the others are parts of)."""
+    runs, start = {}, 0
+    for name, width in widths.items():
+        runs[name] = slice(start, start + width)
+        start += width
+    runs[whole] = slice(None)
+    return runs
 
 
 def _on_device(value, device):

@@ -20,7 +20,7 @@ from tensordict import TensorDict
 
 from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as trj
-from lasmp.envs.base_env import BaseEnv
+from lasmp.envs.base_env import BaseEnv, column_runs
 from lasmp.envs.curriculum import WaypointCurriculum
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.domain_rand import (
@@ -32,7 +32,7 @@ from lasmp.envs.moving_platform.domain_rand import (
 from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read
 from lasmp.envs.moving_platform.rewards import RewardManager, RewardParams
 from lasmp.envs.moving_platform.state import StepState
-from lasmp.envs.robot import as_slice, proprioception, screen_faults, update_rows
+from lasmp.envs.robot import OBS_DIM, as_slice, proprioception, screen_faults, update_rows
 from lasmp.envs.rotations import yaw_quat
 from lasmp.envs.scene import (
     POSE_TO_JOINT,
@@ -105,6 +105,11 @@ class MovingPlatformEnv(BaseEnv):
         )  # fmt: skip
         self.rewards = RewardManager(rc.weights, params, n, device=dev)
         self.plf_half_xy_m = self.tensor(cfg.platform.size_m[:2]) / 2.0
+        # every group is a run of the critic's columns [o, x_exp, x_imp, u_aln, p_body_p (3), phi_body_w (3)]
+        self.obs_columns = column_runs(
+            {"policy": OBS_DIM, "priv_explicit": 13, "priv_implicit": self.x_imp.shape[1], "alignment": 3},
+            whole="critic",
+        )
 
         zeros = lambda *shape: torch.zeros((n, *shape), dtype=self.dtype, device=dev)  # noqa: E731
         self.action = zeros(12)
@@ -288,10 +293,11 @@ class MovingPlatformEnv(BaseEnv):
             update_rows(self.readout, self._fresh, read(self.sim, self.index, self._fresh))
         r = self.readout
         o = proprioception(r, self.action, self.q_nominal)
-        x_exp = torch.cat([r.foot_contact.to(self.dtype), r.v_body_b, r.v_plf_b, r.omega_plf_b], dim=1)
-        critic = torch.cat([o, x_exp, self.x_imp, r.u_aln, r.p_body_p, r.phi_body_w], dim=1)
-        groups = {"priv_explicit": x_exp, "priv_implicit": self.x_imp, "alignment": r.u_aln, "critic": critic}
-        return self._package_observations(o, groups)
+        critic = torch.cat(
+            [o, r.foot_contact.to(self.dtype), r.v_body_b, r.v_plf_b, r.omega_plf_b, self.x_imp, r.u_aln,
+             r.p_body_p, r.phi_body_w], dim=1,
+        )  # fmt: skip
+        return self._package_observations(critic, self.obs_columns)
 
     # -- checkpoint state ----------------------------------------------------------------------
     TASK_STATE = ("action", "action_prev", "tau_prev", "q_dot_prev", "contact_prev", "t_air_s", "t_contact_s",

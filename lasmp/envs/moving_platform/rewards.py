@@ -200,15 +200,26 @@ class RewardManager:
         self._fns = [registry[n] for n in self.term_names]
         self._weights = [w for _, w in active]
         self._episode_sums = torch.zeros(len(active), num_envs, device=self.device)
+        self._scales_dt_s: float | None = None
+        self._scale = torch.zeros(len(active), 1, device=self.device)
 
     def compute(self, state: StepState) -> torch.Tensor:
         """Total reward Σ_k w_k · term_k · dt_s, shape (num_envs,)."""
-        total = torch.zeros(self.num_envs, device=self.device)
-        for i, (fn, w) in enumerate(zip(self._fns, self._weights, strict=True)):
-            r = fn(state, self.params) * (w * state.dt_s)
-            self._episode_sums[i] += r
-            total += r
-        return total
+        if not self._fns:
+            return torch.zeros(self.num_envs, device=self.device)
+        # all terms as one (K, n) stack: three array operations for the weighting, the episode sums
+        # and the total instead of three per term (the same values: w_k · dt_s is rounded to float32
+        # as a scalar factor is, and the total adds the terms in their order, from 0)
+        weighted = torch.stack([fn(state, self.params) for fn in self._fns]) * self._scales(state.dt_s)
+        self._episode_sums += weighted
+        return weighted.sum(dim=0)
+
+    def _scales(self, dt_s: float) -> torch.Tensor:
+        """(K, 1) float32 factors w_k · dt_s, kept for the last dt_s."""
+        if self._scales_dt_s != dt_s:
+            self._scales_dt_s = dt_s
+            self._scale = torch.tensor([[w * dt_s] for w in self._weights], device=self.device)
+        return self._scale
 
     def reset(self, env_ids: torch.Tensor | Sequence[int] | None = None) -> dict[str, float]:
         """Mean episode sum per term over `env_ids` (all envs if None), then zero them."""

@@ -30,10 +30,11 @@ import torch
 from tensordict import TensorDict
 
 from lasmp.config import build_env_cfg
-from lasmp.envs.base_env import BaseEnv
+from lasmp.envs.base_env import BaseEnv, column_runs
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, nominal_intrinsics, sample_intrinsics
 from lasmp.envs.moving_platform.rewards import RewardManager
 from lasmp.envs.robot import (
+    OBS_DIM,
     RobotIndex,
     RobotIntrinsicsWriter,
     RobotReadout,
@@ -70,6 +71,11 @@ class RoughStaticEnv(BaseEnv):
         self.qpos0 = self.tensor(model.qpos0)
         self._robot_ctrl = as_slice(self.index.joint_act)  # the columns the step writes (a slice: faster)
         self.trunk_height_m = a1.nominal_trunk_height_m(model)
+        # every group is a run of the critic's columns [o, x_exp, x_imp, command, height (1), phi_body_w (3)]
+        self.obs_columns = column_runs(
+            {"policy": OBS_DIM, "priv_explicit": 13, "priv_implicit": self.x_imp.shape[1], "command": 3},
+            whole="critic",
+        )
         rc = cfg.rewards
         self.rewards = RewardManager(
             rc.weights,
@@ -225,12 +231,13 @@ class RoughStaticEnv(BaseEnv):
             self.readout = read_robot(self.sim, self.index)  # reset envs: their new state (one pass)
         r = self.readout
         o = proprioception(r, self.action, self.q_nominal)
-        static = torch.zeros((self.num_envs, 6), dtype=self.dtype, device=self.device)
-        x_exp = torch.cat([r.foot_contact.to(self.dtype), r.v_body_b, static], dim=1)
+        static = torch.zeros((self.num_envs, 6), dtype=self.dtype, device=self.device)  # x_exp: a still ground
         height = r.p_body_w[:, 2] - self.terrain.height_at(r.p_body_w[:, :2])
-        critic = torch.cat([o, x_exp, self.x_imp, self.command, height[:, None], r.phi_body_w], dim=1)
-        groups = {"priv_explicit": x_exp, "priv_implicit": self.x_imp, "command": self.command, "critic": critic}
-        return self._package_observations(o, groups)
+        critic = torch.cat(
+            [o, r.foot_contact.to(self.dtype), r.v_body_b, static, self.x_imp, self.command, height[:, None],
+             r.phi_body_w], dim=1,
+        )  # fmt: skip
+        return self._package_observations(critic, self.obs_columns)
 
     # -- checkpoint state (nothing: no curriculum) ---------------------------------------------
     TASK_STATE = ("command", "command_time_left_s", "push_time_left_s", "pushed", "push_dv_mps", "action",

@@ -21,6 +21,9 @@ import argparse
 import json
 import time
 
+import lasmp  # noqa: F401  (first: it sets the OpenMP spin that torch reads when it loads, lasmp/__init__.py)
+
+# isort: split
 import numpy as np
 import torch
 
@@ -87,9 +90,12 @@ def main(argv=None) -> dict:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--backend", choices=("cpu", "warp"), default="cpu", help="physics backend (env.backend)")
     p.add_argument("--device", default="cpu", help="the warp backend's device: cuda[:N], or cpu (Warp's CPU device)")
+    p.add_argument("--torch-threads", type=int, default=1,
+                   help="torch's threads for the env's tensor work (0: torch's default, all cores, as train.py)")  # fmt: skip
     p.add_argument("--json", action="store_true", help="print one JSON object only")
     args = p.parse_args(argv)
-    torch.set_num_threads(1)  # the env's tensor work is small; leave the cores to the physics threads
+    if args.torch_threads > 0:  # the env's tensor work is small; by default leave the cores to the physics threads
+        torch.set_num_threads(args.torch_threads)
     env = MovingPlatformEnv(
         {"num_envs": args.num_envs, "seed": args.seed, "backend": args.backend, "sim": {"num_threads": args.threads}},
         device=args.device,
@@ -103,6 +109,7 @@ def main(argv=None) -> dict:
         "backend": args.backend,
         "device": str(env.device),
         "threads": env.sim.batch.nthread if args.backend == "cpu" else None,
+        "torch_threads": torch.get_num_threads(),
         "env_steps_per_s": round(env_sps, 1),
         "raw_steps_per_s": round(raw, 1),
         "ratio": round(env_sps / raw, 3),

@@ -290,25 +290,40 @@ def test_rough_static_task_trains_the_rs_policy(tmp_path):
     assert data["config"]["task"] == "rough_static" and "command" in data["obs_layout"]
 
 
-def test_an_iteration_on_the_estimates_computes_them_once_with_the_values_of_a_mini_batch_pass(tmp_path):
+def test_an_iteration_on_the_estimates_updates_on_the_very_estimates_its_rollout_acted_on(tmp_path):
     runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 1, "estimate_rollout_start": 0}), None)
     alg, actor = runner.alg, runner.alg.get_policy()
     alg.rollout_on_estimates(0)
     rollout(runner)
+    kept = alg._rollout_estimates
     sample = alg.storage.observations.flatten(0, 1)
     with torch.no_grad():
         per_batch = actor.get_latent(sample)  # computes the estimates itself
-        sample[GROUP_DETACHED_ESTIMATES] = actor.detached_estimates(sample)
+        torch.testing.assert_close(kept.flatten(0, 1), actor.detached_estimates(sample), rtol=1e-5, atol=1e-5)
+        sample[GROUP_DETACHED_ESTIMATES] = kept.flatten(0, 1)
         cached = actor.get_latent(sample)
     torch.testing.assert_close(cached, per_batch, rtol=1e-5, atol=1e-5)
-    calls = []
+    calls, handed = [], []
     real = actor.detached_estimates
     actor.detached_estimates = lambda obs: calls.append(obs.batch_size) or real(obs)
+    real_batches = alg.storage.mini_batch_generator
+
+    def batches(*args):
+        handed.append(alg.storage.observations.get(GROUP_DETACHED_ESTIMATES, None))
+        return real_batches(*args)
+
+    alg.storage.mini_batch_generator = batches
     alg.update_roa = lambda: {}
     alg.update()
-    assert calls == [torch.Size([alg.storage.num_transitions_per_env * runner.env.num_envs])]
+    assert calls == [] and len(handed) == 1 and torch.equal(handed[0], kept)  # bit for bit, none recomputed
     assert GROUP_DETACHED_ESTIMATES not in alg.storage.observations.keys()  # the next rollout writes without it
+    # an update on the estimates after a rollout that did not keep them computes them, once
     alg.rollout_on_estimates(1)
+    actor.act_on_estimates = False
+    rollout(runner)
+    actor.act_on_estimates = True
+    alg.update()
+    assert calls == [torch.Size([alg.storage.num_transitions_per_env * runner.env.num_envs])]
     actor.act_on_estimates = False
     alg.update()
     assert len(calls) == 1  # a privileged iteration computes none

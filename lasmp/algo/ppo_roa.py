@@ -15,8 +15,8 @@ gradient; lambda is constant (no ramp). Rollouts act with privileged inputs, exc
 iteration `estimate_rollout_start` on, every `estimate_rollout_every`-th iteration (rollout and
 PPO update alike) acts on the estimators' detached outputs, as at deployment: the policy then
 learns to live with estimation errors (`rollout_on_estimates`, called by the runner). Its PPO
-update computes those estimates once for the rollout: PPO's epochs change neither the estimators
-nor the normalizer, so they are the ones the rollout acted on.
+update reuses the estimates the rollout acted on, kept at each step (`act`): PPO's epochs change
+neither the estimators nor the normalizer, so they are what the policy saw, bit for bit.
 """
 
 from __future__ import annotations
@@ -65,6 +65,9 @@ class PPOROA(PPO):
         self.estimator_optimizer = torch.optim.Adam(
             self._estimator_params, lr=estimator_learning_rate, fused=True if fused_adam else None
         )
+        # (T, N, k): the estimates each rollout step acted on, and how many steps of this rollout hold them
+        self._rollout_estimates: torch.Tensor | None = None
+        self._estimate_steps = 0
 
     def rollout_on_estimates(self, iteration: int) -> bool:
         """Set whether iteration `iteration` (its rollout and PPO update) acts on the estimates."""
@@ -73,14 +76,27 @@ class PPOROA(PPO):
         self.actor.act_on_estimates = on
         return on
 
+    def act(self, obs):
+        """rsl_rl's `act`; on the estimates, also keeps the estimates the actor acted on for the update."""
+        self.actor.last_detached_estimates = None
+        actions = super().act(obs)
+        estimates = self.actor.last_detached_estimates
+        if estimates is not None:
+            shape = (self.storage.num_transitions_per_env, *estimates.shape)
+            if self._rollout_estimates is None or self._rollout_estimates.shape != shape:
+                self._rollout_estimates = estimates.new_empty(shape)
+            self._rollout_estimates[self.storage.step] = estimates
+            self._estimate_steps += 1
+        return actions
+
     def update(self) -> dict[str, float]:
         on_estimates = self.actor.act_on_estimates
         stored = self.storage.observations
         # PPO's mini-batches gather only what the actor and critic read (a view: nothing is copied)
         self.storage.observations = stored.exclude(*self._unread_by_ppo(on_estimates))
-        if on_estimates:  # once for the rollout, not once per mini-batch and epoch
-            flat = self._in_precision(self.actor.detached_estimates, stored.flatten(0, 1))
-            self.storage.observations[GROUP_DETACHED_ESTIMATES] = flat.view(*stored.batch_size, -1)
+        if on_estimates:  # the rollout's own estimates, not new ones per mini-batch and epoch
+            self.storage.observations[GROUP_DETACHED_ESTIMATES] = self._estimates_of_rollout(stored)
+        self._estimate_steps = 0
         try:
             loss_dict = super().update()
         finally:
@@ -88,6 +104,14 @@ class PPOROA(PPO):
         loss_dict.update(self.update_roa())
         loss_dict["Policy/acts_on_estimates"] = float(on_estimates)
         return loss_dict
+
+    def _estimates_of_rollout(self, stored) -> torch.Tensor:
+        """(T, N, k) estimates for the stored rollout: those its steps acted on, when every step kept
+        them; else (a rollout not collected by `act` on the estimates) computed from its observations."""
+        if self._estimate_steps == self.storage.num_transitions_per_env:
+            return self._rollout_estimates
+        flat = self._in_precision(self.actor.detached_estimates, stored.flatten(0, 1))
+        return flat.view(*stored.batch_size, -1)
 
     def _unread_by_ppo(self, on_estimates: bool) -> list[str]:
         """Observation groups PPO's update does not read: the history, unless the actor takes it

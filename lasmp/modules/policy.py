@@ -84,6 +84,8 @@ class LasmpActor(MLPModel):
         # training on the estimates (PPOROA.rollout_on_estimates): the estimated inputs, detached
         # so that PPO's gradients never reach the estimators
         self.act_on_estimates: bool = False
+        # the estimates of the last forward pass on them (`get_latent`, outside PPO's update), detached
+        self.last_detached_estimates: torch.Tensor | None = None
         self.encoder = ImplicitEncoder(self.num_implicit, latent_dim, encoder_hidden_dims, activation)
         est_kw = dict(
             obs_dim=self.num_obs,
@@ -183,6 +185,8 @@ class LasmpActor(MLPModel):
         elif self.act_on_estimates:
             with torch.no_grad():  # detached: PPO's gradients never reach the estimators
                 x_exp, l_imp, u_aln = self._estimated_inputs(o, history_n)
+                # kept for the rollout's PPO update (PPOROA.act), which then acts on exactly these
+                self.last_detached_estimates = self._joined(x_exp, l_imp, u_aln)
         else:
             x_exp, l_imp, u_aln = self._privileged_inputs(obs)
         parts = [self.obs_normalizer(self._normalized_part(o, x_exp, u_aln, obs)), l_imp]
@@ -204,7 +208,11 @@ class LasmpActor(MLPModel):
         estimates computes them once for its whole rollout instead of once per mini-batch and epoch.
         """
         o = obs[GROUP_OBS]
-        x_hat, l_hat, u_hat = self._estimated_inputs(o, self.normalize_history(obs[GROUP_HISTORY]))
+        return self._joined(*self._estimated_inputs(o, self.normalize_history(obs[GROUP_HISTORY])))
+
+    @staticmethod
+    def _joined(x_hat: torch.Tensor, l_hat: torch.Tensor, u_hat: torch.Tensor | None) -> torch.Tensor:
+        """[x_exp_hat, l_imp_hat(, u_aln_hat)] as one (..., k) tensor (`split_detached_estimates` inverts it)."""
         return torch.cat([x_hat, l_hat] + ([u_hat] if u_hat is not None else []), dim=-1)
 
     def split_detached_estimates(

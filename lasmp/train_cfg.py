@@ -82,8 +82,9 @@ class AlgoCfg:
     fused_adam: bool = False  # (ours) both Adams as one fused kernel (bench/train_iteration.py)
     # rsl_rl's bfloat16 autocast of the PPO update's forward pass, extended to the ROA pass
     use_mixed_precision: bool = False
-    # (ours) torch.compile the actor's and critic's MLPs in place (fuses their element-wise work; the
-    # first iteration compiles, and a CPU needs a C++ compiler); checkpoints are unchanged
+    # (ours) torch.compile the networks in place: the actor's and critic's MLPs, the implicit encoder's
+    # and the history estimators (fuses their element-wise work; the first iteration compiles, and a CPU
+    # needs a C++ compiler); checkpoints are unchanged
     compile_mlps: bool = False
 
 

@@ -395,10 +395,12 @@ def test_compiled_mlps_train_and_save_the_same_parameter_names(tmp_path):
     plain = make_runner(tiny(tmp_path), None)
     compiled = make_runner(tiny(tmp_path, algo={"compile_mlps": True}), None)
     alg = compiled.alg
-    assert alg.actor.mlp._compiled_call_impl is not None and alg.critic.mlp._compiled_call_impl is not None
+    nets = [alg.actor.mlp, alg.critic.mlp, alg.actor.encoder.mlp, *alg.actor.estimators()]
+    assert len(nets) == 5 and all(net._compiled_call_impl is not None for net in nets)
     assert plain.alg.actor.state_dict().keys() == alg.actor.state_dict().keys()
     rollout(compiled)
     before = params(alg.get_policy())
     losses = alg.update()
     assert all(math.isfinite(v) for v in losses.values()) and changed(before, alg.get_policy(), "mlp")
+    assert changed(before, alg.get_policy(), "implicit_estimator")  # the compiled estimators learn too
     plain.alg.actor.load_state_dict(alg.actor.state_dict())  # a compiled run's checkpoint loads anywhere

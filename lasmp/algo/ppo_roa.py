@@ -47,8 +47,8 @@ class PPOROA(PPO):
     ) -> None:
         super().__init__(actor, critic, storage, **kwargs)
         if compile_mlps:  # in place: the parameters and their state-dict names stay as they are
-            self.actor.mlp.compile()
-            self.critic.mlp.compile()
+            for net in (self.actor.mlp, self.critic.mlp, self.actor.encoder.mlp, *self.actor.estimators()):
+                net.compile()
         if fused_adam:  # the same Adam in one fused kernel; on a CPU PyTorch otherwise loops per tensor
             self.optimizer = torch.optim.Adam(
                 chain(self.actor.parameters(), self.critic.parameters()), lr=self.learning_rate, fused=True

@@ -233,12 +233,13 @@ class LasmpActor(MLPModel):
         self.encoder.update_normalization(obs[GROUP_IMPLICIT])
 
     # ----------------------------------------------------------------- ROA
+    def estimators(self) -> list[HistoryEstimator]:
+        """The history estimators (psi): the implicit one, and the explicit one if any."""
+        return [self.implicit_estimator] + ([self.explicit_estimator] if self.explicit_estimator is not None else [])
+
     def estimator_parameters(self) -> list[nn.Parameter]:
         """Parameters of both history estimators (psi)."""
-        params = list(self.implicit_estimator.parameters())
-        if self.explicit_estimator is not None:
-            params += list(self.explicit_estimator.parameters())
-        return params
+        return [p for est in self.estimators() for p in est.parameters()]
 
     def encoder_parameters(self) -> list[nn.Parameter]:
         """Parameters of the implicit encoder h_theta."""

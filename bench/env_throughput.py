@@ -9,7 +9,8 @@ each restored with `set_state` before one timed `step`), and does nothing else. 
 interleaved with the env's (one right after each recorded env step), so that both rates are
 measured over the same minutes of a shared machine. Both are reported in policy steps per second (env steps x envs / s);
 `ratio` = env / raw; `env_physics_share` is the
-share of the env's own wall time spent inside `Batch.step` on its states. Also reports the Stand Still collision rate over the episodes it ended.
+share of the env's own wall time spent inside `Batch.step` on its states, `env_other_ms_per_step` the rest
+of an env step in ms. Also reports the Stand Still collision rate over the episodes it ended.
 
     python bench/env_throughput.py --num-envs 1024 --json
     python bench/env_throughput.py --backend warp --device cuda --num-envs 8192 --json
@@ -77,6 +78,9 @@ def measure(env: MovingPlatformEnv, steps: int, raw_samples: int = 50) -> dict:
         "raw_steps_per_s": raw_steps * env.num_envs / raw_s,
         # share of the env's wall time spent inside the backend's stepping itself
         "env_physics_share": env.sim.step_time_s / env_s,
+        # the rest of an env step (actions, readout, rewards, resets, observations), ms: a steadier measure
+        # of the env's own work than the ratio, whose physics part drifts with the machine's load
+        "env_other_ms_per_step": (env_s - env.sim.step_time_s) / steps * 1e3,
         "episodes": episodes,
         "collisions": collisions,
     }
@@ -114,6 +118,7 @@ def main(argv=None) -> dict:
         "raw_steps_per_s": round(raw, 1),
         "ratio": round(env_sps / raw, 3),
         "env_physics_share": round(m["env_physics_share"], 3),
+        "env_other_ms_per_step": round(m["env_other_ms_per_step"], 2),
         "stand_still_episodes": episodes,
         "stand_still_collision_rate": round(collisions / episodes, 4) if episodes else float("nan"),
         "faults": env.fault_count,

@@ -25,9 +25,14 @@ def test_env_throughput_bench_prints_one_json_object(tmp_path):
         "ratio",
         "stand_still_collision_rate",
         "env_physics_share",
+        "env_other_ms_per_step",
     ):
         assert key in result, key
     assert result["env_steps_per_s"] > 0 and result["raw_steps_per_s"] > 0
+    # the env's wall time per step is its physics plus the rest
+    env_ms = 8 / result["env_steps_per_s"] * 1e3
+    assert result["env_other_ms_per_step"] == pytest.approx((1 - result["env_physics_share"]) * env_ms, rel=0.02, abs=0.02)
+    assert result["torch_threads"] == 1
     assert abs(result["ratio"] - result["env_steps_per_s"] / result["raw_steps_per_s"]) < 1e-2
 
 

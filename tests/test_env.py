@@ -384,3 +384,27 @@ def test_observations_handed_out_stay_unchanged_through_the_next_step():
         for key, value in snapshot.items():
             assert torch.equal(handed_out[key], value), key
         assert torch.equal(obs["history"][:, 0], handed_out["policy"])  # the newest entry: the last o
+
+
+def test_groups_are_the_critic_columns_they_document():
+    env = make(3)
+    obs, _, _, _ = env.step(0.2 * torch.randn(3, 12))
+    r, critic = env.readout, obs["critic"]
+    f32 = lambda x: x.to(torch.float32)  # noqa: E731
+    assert torch.equal(obs["policy"], critic[:, :44])
+    x_exp = torch.cat([f32(r.foot_contact), f32(r.v_body_b), f32(r.v_plf_b), f32(r.omega_plf_b)], dim=1)
+    assert torch.equal(obs["priv_explicit"], x_exp) and torch.equal(critic[:, 44:57], x_exp)
+    assert torch.equal(obs["priv_implicit"], f32(env.x_imp)) and torch.equal(critic[:, 57:86], f32(env.x_imp))
+    assert torch.equal(obs["alignment"], f32(r.u_aln)) and torch.equal(critic[:, 86:89], f32(r.u_aln))
+    assert torch.equal(critic[:, 89:], torch.cat([f32(r.p_body_p), f32(r.phi_body_w)], dim=1))
+
+
+def test_a_non_finite_observation_value_becomes_0_is_counted_once_and_the_rest_is_clipped():
+    env = make(3, observations={"clip": 5.0})
+    env.x_imp[1, 0] = torch.nan  # the trunk mass of env 1, in priv_implicit and in the critic
+    env.x_imp[2, 1] = -1e9
+    obs, _, _, extras = env.step(torch.zeros(3, 12))
+    assert env.nonfinite_obs_values == 1 and extras["log"]["/faults/nonfinite_obs_values"] == 1.0
+    assert all(torch.isfinite(v).all() and v.abs().max() <= 5.0 for v in obs.values())
+    assert obs["priv_implicit"][1, 0] == 0.0 and obs["critic"][1, 57] == 0.0
+    assert obs["priv_implicit"][2, 1] == -5.0 and obs["priv_implicit"][0, 0] == pytest.approx(min(env.x_imp[0, 0], 5.0))

@@ -81,7 +81,7 @@ class PPOROA(PPO):
         self.actor.last_detached_estimates = None
         actions = super().act(obs)
         estimates = self.actor.last_detached_estimates
-        if estimates is not None:
+        if estimates is not None and self.storage.step < self.storage.num_transitions_per_env:
             shape = (self.storage.num_transitions_per_env, *estimates.shape)
             if self._rollout_estimates is None or self._rollout_estimates.shape != shape:
                 self._rollout_estimates = estimates.new_empty(shape)

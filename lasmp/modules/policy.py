@@ -205,7 +205,8 @@ class LasmpActor(MLPModel):
         """[x_exp_hat, l_imp_hat(, u_aln_hat)] in one (..., k) tensor, for `GROUP_DETACHED_ESTIMATES`.
 
         PPO's epochs change neither the estimators nor the normalizer, so an iteration on the
-        estimates computes them once for its whole rollout instead of once per mini-batch and epoch.
+        estimates needs them once for its whole rollout, not once per mini-batch and epoch: PPOROA
+        uses those its rollout kept (`last_detached_estimates`), and this for a rollout that kept none.
         """
         o = obs[GROUP_OBS]
         return self._joined(*self._estimated_inputs(o, self.normalize_history(obs[GROUP_HISTORY])))

@@ -290,7 +290,7 @@ def test_rough_static_task_trains_the_rs_policy(tmp_path):
     assert data["config"]["task"] == "rough_static" and "command" in data["obs_layout"]
 
 
-def test_an_iteration_on_the_estimates_updates_on_the_very_estimates_its_rollout_acted_on(tmp_path):
+def test_an_iteration_on_the_estimates_updates_on_the_very_estimates_its_rollout_acted_on(tmp_path, monkeypatch):
     runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 1, "estimate_rollout_start": 0}), None)
     alg, actor = runner.alg, runner.alg.get_policy()
     alg.rollout_on_estimates(0)
@@ -306,13 +306,14 @@ def test_an_iteration_on_the_estimates_updates_on_the_very_estimates_its_rollout
     calls, handed = [], []
     real = actor.detached_estimates
     actor.detached_estimates = lambda obs: calls.append(obs.batch_size) or real(obs)
-    real_batches = alg.storage.mini_batch_generator
+    storage_type = type(alg.storage)
+    real_batches = storage_type.mini_batch_generator
 
-    def batches(*args):
-        handed.append(alg.storage.observations.get(GROUP_DETACHED_ESTIMATES, None))
-        return real_batches(*args)
+    def batches(storage, *args):
+        handed.append(storage.observations.get(GROUP_DETACHED_ESTIMATES, None))
+        return real_batches(storage, *args)
 
-    alg.storage.mini_batch_generator = batches
+    monkeypatch.setattr(storage_type, "mini_batch_generator", batches)
     alg.update_roa = lambda: {}
     alg.update()
     assert calls == [] and len(handed) == 1 and torch.equal(handed[0], kept)  # bit for bit, none recomputed
@@ -404,3 +405,38 @@ def test_compiled_mlps_train_and_save_the_same_parameter_names(tmp_path):
     assert all(math.isfinite(v) for v in losses.values()) and changed(before, alg.get_policy(), "mlp")
     assert changed(before, alg.get_policy(), "implicit_estimator")  # the compiled estimators learn too
     plain.alg.actor.load_state_dict(alg.actor.state_dict())  # a compiled run's checkpoint loads anywhere
+
+
+def _batch_fields(batch) -> list[torch.Tensor]:
+    obs = batch.observations
+    return [obs[k] for k in sorted(obs.keys())] + [
+        batch.actions, batch.values, batch.advantages, batch.returns, batch.old_actions_log_prob,
+        *batch.old_distribution_params,
+    ]  # fmt: skip
+
+
+def test_rsl_rl_visits_the_same_mini_batches_in_every_epoch(tmp_path):
+    """What `PPOROA._mini_batches_gathered_once` relies on: an rsl_rl that drew a new permutation per
+    epoch would fail here rather than have its epochs silently collapse into one."""
+    runner = make_runner(tiny(tmp_path), None)
+    rollout(runner)
+    batches = list(runner.alg.storage.mini_batch_generator(2, 3))
+    assert len(batches) == 6
+    for first, later in zip(batches[:2] * 2, batches[2:], strict=True):
+        assert all(torch.equal(a, b) for a, b in zip(_batch_fields(first), _batch_fields(later), strict=True))
+    assert not torch.equal(batches[0].actions, batches[1].actions)
+
+
+def test_ppo_mini_batches_gathered_once_equal_rsl_rl_s_and_are_fresh_objects(tmp_path):
+    runner = make_runner(tiny(tmp_path), None)
+    alg = runner.alg
+    rollout(runner)
+    torch.manual_seed(7)
+    expected = list(alg.storage.mini_batch_generator(2, 3))
+    torch.manual_seed(7)
+    got = list(alg._mini_batches_gathered_once(2, 3))
+    assert len(got) == len(expected) == 6 and len({id(b) for b in got}) == 6
+    for a, b in zip(expected, got, strict=True):
+        assert all(torch.equal(x, y) for x, y in zip(_batch_fields(a), _batch_fields(b), strict=True))
+    got[0].advantages = got[0].advantages * 0.0  # PPO reassigns fields: the next epoch's batch keeps its own
+    assert torch.equal(got[2].advantages, expected[2].advantages)

@@ -21,6 +21,7 @@ neither the estimators nor the normalizer, so they are what the policy saw, bit 
 
 from __future__ import annotations
 
+import copy
 from itertools import chain
 
 import torch
@@ -97,13 +98,26 @@ class PPOROA(PPO):
         if on_estimates:  # the rollout's own estimates, not new ones per mini-batch and epoch
             self.storage.observations[GROUP_DETACHED_ESTIMATES] = self._estimates_of_rollout(stored)
         self._estimate_steps = 0
+        self.storage.mini_batch_generator = self._mini_batches_gathered_once  # for this update only
         try:
             loss_dict = super().update()
         finally:
             self.storage.observations = stored
+            del self.storage.mini_batch_generator  # the storage's own again
         loss_dict.update(self.update_roa())
         loss_dict["Policy/acts_on_estimates"] = float(on_estimates)
         return loss_dict
+
+    def _mini_batches_gathered_once(self, num_mini_batches: int, num_epochs: int):
+        """rsl_rl's mini-batches for PPO's epochs, each gathered from the rollout once: its generator
+        draws one permutation for all epochs, so every epoch visits the same mini-batches in the same
+        order (`tests/test_train.py` checks that of the installed rsl_rl). The same values as rsl_rl's
+        generator; a fresh `Batch` per epoch, since PPO may reassign a batch's fields (per-mini-batch
+        advantage normalization)."""
+        gathered = list(type(self.storage).mini_batch_generator(self.storage, num_mini_batches, 1))
+        for _ in range(num_epochs):
+            for batch in gathered:
+                yield copy.copy(batch)
 
     def _estimates_of_rollout(self, stored) -> torch.Tensor:
         """(T, N, k) estimates for the stored rollout: those its steps acted on, when every step kept

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import pickle
 
 import pytest
 import torch
@@ -298,3 +299,16 @@ def test_h_des_reading_resolves_to_the_platform_frame():
     assert RewardsCfg(h_des_from="top").h_des_p_m(0.1) == pytest.approx(0.47)
     with pytest.raises(ConfigError, match="h_des_from"):
         RewardsCfg(h_des_from="floor").validate("env.rewards")
+
+
+def test_a_manager_pickled_before_the_scale_cache_existed_still_computes():
+    """A checkpoint's running state pickles the env's RewardManager: one from before the (K, 1) scale
+    cache lacks its attributes, and must still compute (with the same rewards) after loading."""
+    m = RewardManager(DEFAULT_REWARD_WEIGHTS, P, N, "cpu")
+    old = pickle.loads(pickle.dumps(m))
+    for name in ("_scales_dt_s", "_scale"):
+        del old.__dict__[name]  # as pickled by the earlier code
+    loaded = pickle.loads(pickle.dumps(old))
+    state = make_state(dt_s=0.02)
+    assert torch.equal(loaded.compute(state), m.compute(state))
+    assert torch.equal(loaded._episode_sums, m._episode_sums)

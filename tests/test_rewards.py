@@ -301,14 +301,11 @@ def test_h_des_reading_resolves_to_the_platform_frame():
         RewardsCfg(h_des_from="floor").validate("env.rewards")
 
 
-def test_a_manager_pickled_before_the_scale_cache_existed_still_computes():
-    """A checkpoint's running state pickles the env's RewardManager: one from before the (K, 1) scale
-    cache lacks its attributes, and must still compute (with the same rewards) after loading."""
+def test_a_pickled_manager_computes_the_same_after_loading():
+    """A checkpoint's running state pickles the env's RewardManager (its attributes, so one saved by the
+    code before the stacked sum holds the same ones); loaded, it must compute the same rewards."""
     m = RewardManager(DEFAULT_REWARD_WEIGHTS, P, N, "cpu")
-    old = pickle.loads(pickle.dumps(m))
-    for name in ("_scales_dt_s", "_scale"):
-        del old.__dict__[name]  # as pickled by the earlier code
-    loaded = pickle.loads(pickle.dumps(old))
+    loaded = pickle.loads(pickle.dumps(m))
     state = make_state(dt_s=0.02)
     assert torch.equal(loaded.compute(state), m.compute(state))
     assert torch.equal(loaded._episode_sums, m._episode_sums)

@@ -25,6 +25,7 @@ Our choices (SPEC §10 leaves them open):
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -175,6 +176,13 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
 }
 
 
+@functools.lru_cache(maxsize=16)
+def _weight_factors(weights: tuple[float, ...], dt_s: float, device: torch.device) -> torch.Tensor:
+    """(K, 1) float32 factors w_k · dt_s on `device`, built once: a tensor made from host numbers every
+    step would, on a GPU, wait for the device each time."""
+    return torch.tensor([[w * dt_s] for w in weights], device=device)
+
+
 class RewardManager:
     """Sums weighted terms each step and keeps per-env episode sums per term for logging.
 
@@ -200,8 +208,6 @@ class RewardManager:
         self._fns = [registry[n] for n in self.term_names]
         self._weights = [w for _, w in active]
         self._episode_sums = torch.zeros(len(active), num_envs, device=self.device)
-        self._scales_dt_s: float | None = None
-        self._scale = torch.zeros(len(active), 1, device=self.device)
 
     def compute(self, state: StepState) -> torch.Tensor:
         """Total reward Σ_k w_k · term_k · dt_s, shape (num_envs,)."""
@@ -210,21 +216,10 @@ class RewardManager:
         # all terms as one (K, n) stack: three array operations for the weighting, the episode sums
         # and the total instead of three per term, with the same values (w_k · dt_s is rounded to
         # float32 as a scalar factor was; checked bit for bit on a seeded 400-step rollout)
-        weighted = torch.stack([fn(state, self.params) for fn in self._fns]) * self._scales(state.dt_s)
+        factors = _weight_factors(tuple(self._weights), state.dt_s, self.device)
+        weighted = torch.stack([fn(state, self.params) for fn in self._fns]) * factors
         self._episode_sums += weighted
         return weighted.sum(dim=0)
-
-    def __setstate__(self, state: dict) -> None:
-        """Unpickling (a checkpoint's running state): one saved before the scale cache existed lacks it."""
-        self.__dict__.update(state)
-        self.__dict__.setdefault("_scales_dt_s", None)
-
-    def _scales(self, dt_s: float) -> torch.Tensor:
-        """(K, 1) float32 factors w_k · dt_s, kept for the last dt_s."""
-        if self._scales_dt_s != dt_s:
-            self._scales_dt_s = dt_s
-            self._scale = torch.tensor([[w * dt_s] for w in self._weights], device=self.device)
-        return self._scale
 
     def reset(self, env_ids: torch.Tensor | Sequence[int] | None = None) -> dict[str, float]:
         """Mean episode sum per term over `env_ids` (all envs if None), then zero them."""

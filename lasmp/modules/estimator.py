@@ -56,5 +56,7 @@ class HistoryEstimator(nn.Module):
     def forward(self, history: torch.Tensor) -> torch.Tensor:
         """(n, H, obs_dim) -> (n, out_dim)."""
         z = self.step_mlp(history)  # (n, H, mlp_dim)
-        z = self.cnn(z.transpose(1, 2))  # (n, channels, L)
+        # (n, channels, L). Contiguous first: oneDNN's convolutions of the transposed view took 1.4x as long,
+        # forward and backward, for the same values to the bit (float32 and bfloat16)
+        z = self.cnn(z.transpose(1, 2).contiguous())
         return self.head(z.flatten(1))

@@ -96,14 +96,12 @@ def main(argv=None) -> dict:
     p.add_argument("--device", default="cpu", help="the warp backend's device: cuda[:N], or cpu (Warp's CPU device)")
     p.add_argument("--torch-threads", type=int, default=1,
                    help="torch's threads for the env's tensor work (0: torch's default, all cores, as train.py)")  # fmt: skip
-    p.add_argument("--compile", action="store_true", help="env.compile: the readout through torch.compile")
     p.add_argument("--json", action="store_true", help="print one JSON object only")
     args = p.parse_args(argv)
     if args.torch_threads > 0:  # the env's tensor work is small; by default leave the cores to the physics threads
         torch.set_num_threads(args.torch_threads)
     env = MovingPlatformEnv(
-        {"num_envs": args.num_envs, "seed": args.seed, "backend": args.backend, "compile": args.compile,
-         "sim": {"num_threads": args.threads}},
+        {"num_envs": args.num_envs, "seed": args.seed, "backend": args.backend, "sim": {"num_threads": args.threads}},
         device=args.device,
     )
     env.reset()
@@ -116,7 +114,6 @@ def main(argv=None) -> dict:
         "device": str(env.device),
         "threads": env.sim.batch.nthread if args.backend == "cpu" else None,
         "torch_threads": torch.get_num_threads(),
-        "compile": args.compile,
         "env_steps_per_s": round(env_sps, 1),
         "raw_steps_per_s": round(raw, 1),
         "ratio": round(env_sps / raw, 3),

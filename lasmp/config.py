@@ -197,9 +197,6 @@ class BaseEnvCfg:
     num_envs: int = 256
     seed: int = 0
     backend: str = "cpu"  # physics: cpu (mujoco.batch) | warp (MuJoCo Warp; pip install -e ".[gpu]")
-    # (ours) torch.compile the per-step readout of the physics state: its ~200 small array operations become
-    # a few fused kernels (README "Speed on a CPU"). The first steps compile (a CPU needs a C++ compiler)
-    compile: bool = False
     sim: SimCfg = field(default_factory=SimCfg)
     control: ControlCfg = field(default_factory=ControlCfg)
     observations: ObservationsCfg = field(default_factory=ObservationsCfg)

@@ -178,8 +178,8 @@ def test_a_saved_config_reads_back_to_the_same_train_cfg(task):
     saved = to_plain(cfg)  # what config.yaml and every checkpoint hold
     again = to_train_cfg(OmegaConf.create(json.loads(json.dumps(saved))))
     assert again == cfg and to_plain(again) == saved
-    # the saved layout, as checkpoints written before the env schemas moved hold it (plus env.backend and
-    # env.compile, which older checkpoints lack: they read back with their defaults, cpu and false)
+    # the saved layout, as checkpoints written before the env schemas moved hold it (plus env.backend,
+    # which older checkpoints lack: they read back with its default, cpu)
     assert list(saved) == [
         "task",
         "seed",
@@ -191,7 +191,7 @@ def test_a_saved_config_reads_back_to_the_same_train_cfg(task):
         "algo",
         "runner",
     ]
-    common = ["num_envs", "seed", "backend", "compile", "sim", "control", "observations"]
+    common = ["num_envs", "seed", "backend", "sim", "control", "observations"]
     assert list(saved["env"]) == common + {
         "moving_platform": ["init_state", "domain_rand", "platform", "trajectory", "curriculum", "rewards",
                             "termination"],

@@ -15,7 +15,6 @@ from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.domain_rand import nominal_intrinsics
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
-from lasmp.envs.moving_platform.readout import read
 from lasmp.envs.robot import as_numpy
 from lasmp.robots import a1
 
@@ -409,24 +408,3 @@ def test_a_non_finite_observation_value_becomes_0_is_counted_once_and_the_rest_i
     assert all(torch.isfinite(v).all() and v.abs().max() <= 5.0 for v in obs.values())
     assert obs["priv_implicit"][1, 0] == 0.0 and obs["critic"][1, 57] == 0.0
     assert obs["priv_implicit"][2, 1] == -5.0 and obs["priv_implicit"][0, 0] == pytest.approx(min(env.x_imp[0, 0], 5.0))
-
-
-def test_compiled_readout_gives_the_same_seeded_rollout():
-    """env.compile: a seeded rollout with random actions, resets of some envs included (their rows
-    read alone), gives the observations, rewards and dones of the uncompiled env."""
-
-    def run(compiled: bool):
-        env = make(8, seed=3, compile=compiled)
-        gen = torch.Generator().manual_seed(0)
-        steps = []
-        for _ in range(80):
-            obs, reward, done, _ = env.step(0.8 * torch.randn(8, 12, generator=gen))
-            steps.append(torch.cat([obs["critic"], obs["history"].flatten(1), reward[:, None], done[:, None]], 1))
-        return env, torch.stack(steps)
-
-    plain_env, plain = run(False)
-    compiled_env, compiled = run(True)
-    assert plain_env._read is read and compiled_env._read is not read
-    dones = plain[:, :, -1].sum(dim=1)
-    assert ((dones > 0) & (dones < 8)).any()  # some steps reset some envs, not all
-    torch.testing.assert_close(compiled, plain, rtol=1e-6, atol=1e-6)

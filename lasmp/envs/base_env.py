@@ -23,7 +23,6 @@ from __future__ import annotations
 import copy
 import warnings
 from abc import abstractmethod
-from collections.abc import Callable
 
 import numpy as np
 import torch
@@ -176,28 +175,6 @@ class BaseEnv(VecEnv):
             self.episode_length_buf[ids] = 0
         self._obs = self._guarded_observations(log)
         return self._obs, reward, done, {"time_outs": timed_out, "log": log}
-
-    def _readout(self, read: Callable, reads_rows: bool) -> Callable:
-        """The task's readout of the physics state, `read(sim, self.index, rows=None)`, through
-        torch.compile when `env.compile` is set (else `read` itself). Its graphs compile here, not in
-        the middle of the first episodes: one for all envs and, for a task that also reads some rows
-        (`reads_rows`), one for a single row and one for any other number of rows (dynamic, so that
-        each reset's count does not compile anew). The values may differ from the uncompiled
-        readout's in the last bits of float64 (other vector paths of sin, atan2, ...); the float32
-        observations and rewards of seeded rollouts came out the same (tests/test_env.py)."""
-        if not self.cfg.compile:
-            return read
-        compiled = torch.compile(read)
-
-        def call(sim, index, rows: torch.Tensor | None = None):
-            if rows is not None:
-                torch._dynamo.maybe_mark_dynamic(rows, 0)
-            return compiled(sim, index, rows)
-
-        call(self.sim, self.index)  # reads only: the state is left as it is
-        for k in range(1, min(2, self.num_envs) + 1) if reads_rows else ():
-            call(self.sim, self.index, torch.arange(k, device=self.device))
-        return call
 
     def _finished_episode_log(self, done: torch.Tensor) -> dict:
         """Per-term reward sums (`self.rewards`, a RewardManager) and mean length of the episodes of

@@ -56,7 +56,6 @@ class MovingPlatformEnv(BaseEnv):
         super().__init__(cfg, model, 12, int(round(cfg.trajectory.duration_s / dt_s)), device)
         n, dev = self.num_envs, self.device
         self.index = ReadoutIndex(model, dev)
-        self._read = self._readout(read, reads_rows=True)
         self.gains = platform_gains(cfg.platform)
         plf_act_pos, plf_act_vel = platform_actuator_ids(model)
         self.plf_act_pos = torch.as_tensor(plf_act_pos, device=dev)
@@ -162,7 +161,7 @@ class MovingPlatformEnv(BaseEnv):
         return off | below
 
     def _evaluate(self):
-        r, faulted = screen_faults(self._read(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
+        r, faulted = screen_faults(read(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
         self.readout = r
         fell = self._fell(r)
         collision = r.body_collision | fell
@@ -289,9 +288,9 @@ class MovingPlatformEnv(BaseEnv):
     def _observations(self) -> TensorDict:
         # the readout of this step, with the envs reset since then read again (their new state)
         if self.readout is None or (self._fresh is not None and len(self._fresh) == self.num_envs):
-            self.readout = self._read(self.sim, self.index)
+            self.readout = read(self.sim, self.index)
         elif self._fresh is not None:
-            update_rows(self.readout, self._fresh, self._read(self.sim, self.index, self._fresh))
+            update_rows(self.readout, self._fresh, read(self.sim, self.index, self._fresh))
         r = self.readout
         o = proprioception(r, self.action, self.q_nominal)
         critic = torch.cat(

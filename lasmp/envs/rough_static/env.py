@@ -64,7 +64,6 @@ class RoughStaticEnv(BaseEnv):
         super().__init__(cfg, model, 12, int(round(cfg.episode_length_s / dt_s)), device)
         n, dev = self.num_envs, self.device
         self.index = RobotIndex(model, dev)
-        self._read = self._readout(read_robot, reads_rows=False)
         self.writer = RobotIntrinsicsWriter(self.sim)
         self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.domain_rand.train.platform_kd_factor[0])
         self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
@@ -143,7 +142,7 @@ class RoughStaticEnv(BaseEnv):
 
     # -- evaluation ----------------------------------------------------------------------------
     def _evaluate(self):
-        r, faulted = screen_faults(self._read(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
+        r, faulted = screen_faults(read_robot(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
         self.readout = r
         tilted = (torch.abs(r.phi_body_w[:, :2]) > self.cfg.termination.max_tilt_rad).any(dim=1)
         fell = r.body_collision | tilted
@@ -229,7 +228,7 @@ class RoughStaticEnv(BaseEnv):
     # -- observations --------------------------------------------------------------------------
     def _observations(self) -> TensorDict:
         if self.readout is None or self._fresh is not None:
-            self.readout = self._read(self.sim, self.index)  # reset envs: their new state (one pass)
+            self.readout = read_robot(self.sim, self.index)  # reset envs: their new state (one pass)
         r = self.readout
         o = proprioception(r, self.action, self.q_nominal)
         static = torch.zeros((self.num_envs, 6), dtype=self.dtype, device=self.device)  # x_exp: a still ground

@@ -4,8 +4,8 @@ The env runs the Stand Still controller (a = 0) with everything on: observations
 terminations, resets, domain randomization, trajectories. The raw baseline is a second backend of
 the same kind (`--backend`: cpu = `mujoco.batch.Batch`, warp = MuJoCo Warp on `--device`) on the
 same compiled model, same env count and threads, same per-env parameters, same `nstep =
-decimation`, stepped from the very states the env's physics met (50 recorded during the env run,
-each restored with `set_state` before one timed `step`), and does nothing else. The raw steps are
+decimation`, stepped from the very states the env's physics met (`--raw-samples`, 200, recorded during
+the env run, each restored with `set_state` before one timed `step`), and does nothing else. The raw steps are
 interleaved with the env's (one right after each recorded env step), so that both rates are
 measured over the same minutes of a shared machine. Both are reported in policy steps per second (env steps x envs / s);
 `ratio` = env / raw; `env_physics_share` is the
@@ -32,13 +32,14 @@ from lasmp.envs.backends import make_backend
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
 
-def measure(env: MovingPlatformEnv, steps: int, raw_samples: int = 50) -> dict:
+def measure(env: MovingPlatformEnv, steps: int, raw_samples: int = 200) -> dict:
     """Env policy steps/s with a = 0 and, interleaved with them, raw backend steps/s on the env's own
     states: before every (steps // raw_samples)-th env step the physics state it meets is recorded
     (inside the env's step, the recording's time left out), and right after that env step a second
     backend of the same kind and model restarts from it and takes one timed step. Both rates are
     thus measured over the same minutes: on a shared machine, speed drifts by 10 % and more between
-    one minute and the next."""
+    one minute and the next. The raw rate's own noise shrinks with the samples: with 50, the env's
+    physics came out up to 2 % faster or slower than the raw steps from run to run."""
     raw_sim = make_backend(env.cfg.backend, env.sim.model, env.num_envs, env.cfg.sim, env.device)
     actions = torch.zeros(env.num_envs, env.num_actions)
     every = max(1, steps // raw_samples)
@@ -81,6 +82,7 @@ def measure(env: MovingPlatformEnv, steps: int, raw_samples: int = 50) -> dict:
         # the rest of an env step (actions, readout, rewards, resets, observations), ms: a steadier measure
         # of the env's own work than the ratio, whose physics part drifts with the machine's load
         "env_other_ms_per_step": (env_s - env.sim.step_time_s) / steps * 1e3,
+        "raw_samples": raw_steps,
         "episodes": episodes,
         "collisions": collisions,
     }
@@ -90,6 +92,7 @@ def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--num-envs", type=int, default=1024)
     p.add_argument("--steps", type=int, default=1000, help="policy steps of the env (2 episodes at 500)")
+    p.add_argument("--raw-samples", type=int, default=200, help="env states replayed by the raw backend")
     p.add_argument("--threads", type=int, default=0, help="Batch threads, 0 = all cores")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--backend", choices=("cpu", "warp"), default="cpu", help="physics backend (env.backend)")
@@ -98,6 +101,8 @@ def main(argv=None) -> dict:
                    help="torch's threads for the env's tensor work (0: torch's default, all cores, as train.py)")  # fmt: skip
     p.add_argument("--json", action="store_true", help="print one JSON object only")
     args = p.parse_args(argv)
+    if args.raw_samples < 1 or args.steps < 1:
+        p.error(f"--steps and --raw-samples must be >= 1, got {args.steps} and {args.raw_samples}")
     if args.torch_threads > 0:  # the env's tensor work is small; by default leave the cores to the physics threads
         torch.set_num_threads(args.torch_threads)
     env = MovingPlatformEnv(
@@ -106,7 +111,7 @@ def main(argv=None) -> dict:
     )
     env.reset()
     measure(env, 5, raw_samples=1)  # warm-up
-    m = measure(env, args.steps)
+    m = measure(env, args.steps, args.raw_samples)
     env_sps, raw, episodes, collisions = m["env_steps_per_s"], m["raw_steps_per_s"], m["episodes"], m["collisions"]
     result = {
         "num_envs": args.num_envs,
@@ -119,6 +124,7 @@ def main(argv=None) -> dict:
         "ratio": round(env_sps / raw, 3),
         "env_physics_share": round(m["env_physics_share"], 3),
         "env_other_ms_per_step": round(m["env_other_ms_per_step"], 2),
+        "raw_samples": m["raw_samples"],
         "stand_still_episodes": episodes,
         "stand_still_collision_rate": round(collisions / episodes, 4) if episodes else float("nan"),
         "faults": env.fault_count,

@@ -26,6 +26,7 @@ def test_env_throughput_bench_prints_one_json_object(tmp_path):
         "stand_still_collision_rate",
         "env_physics_share",
         "env_other_ms_per_step",
+        "raw_samples",
     ):
         assert key in result, key
     assert result["env_steps_per_s"] > 0 and result["raw_steps_per_s"] > 0
@@ -33,6 +34,7 @@ def test_env_throughput_bench_prints_one_json_object(tmp_path):
     env_ms = 8 / result["env_steps_per_s"] * 1e3
     assert result["env_other_ms_per_step"] == pytest.approx((1 - result["env_physics_share"]) * env_ms, rel=0.02, abs=0.02)
     assert result["torch_threads"] == 1
+    assert result["raw_samples"] == 30  # one per env step when there are fewer steps than samples
     assert abs(result["ratio"] - result["env_steps_per_s"] / result["raw_steps_per_s"]) < 1e-2
 
 

@@ -31,8 +31,10 @@ import torch
 from lasmp.envs.backends import make_backend
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
+RAW_SAMPLES = 200  # env states replayed on the raw backend; with 50 the ratio moved by 2 points between runs
 
-def measure(env: MovingPlatformEnv, steps: int, raw_samples: int = 200) -> dict:
+
+def measure(env: MovingPlatformEnv, steps: int, raw_samples: int = RAW_SAMPLES) -> dict:
     """Env policy steps/s with a = 0 and, interleaved with them, raw backend steps/s on the env's own
     states: before every (steps // raw_samples)-th env step the physics state it meets is recorded
     (inside the env's step, the recording's time left out), and right after that env step a second
@@ -92,7 +94,7 @@ def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--num-envs", type=int, default=1024)
     p.add_argument("--steps", type=int, default=1000, help="policy steps of the env (2 episodes at 500)")
-    p.add_argument("--raw-samples", type=int, default=200, help="env states replayed by the raw backend")
+    p.add_argument("--raw-samples", type=int, default=RAW_SAMPLES, help="env states replayed by the raw backend")
     p.add_argument("--threads", type=int, default=0, help="Batch threads, 0 = all cores")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--backend", choices=("cpu", "warp"), default="cpu", help="physics backend (env.backend)")

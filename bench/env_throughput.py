@@ -4,9 +4,9 @@ The env runs the Stand Still controller (a = 0) with everything on: observations
 terminations, resets, domain randomization, trajectories. The raw baseline is a second backend of
 the same kind (`--backend`: cpu = `mujoco.batch.Batch`, warp = MuJoCo Warp on `--device`) on the
 same compiled model, same env count and threads, same per-env parameters, same `nstep =
-decimation`, stepped from the very states the env's physics met (`--raw-samples`, 200, recorded during
-the env run, each restored with `set_state` before one timed `step`), and does nothing else. The raw steps are
-interleaved with the env's (one right after each recorded env step), so that both rates are
+decimation`, stepped from the very states the env's physics met (`--raw-samples`, 200, recorded
+during the env run, each restored with `set_state` before one timed `step`), and does nothing else. The
+raw steps are interleaved with the env's (one right after each recorded env step), so that both rates are
 measured over the same minutes of a shared machine. Both are reported in policy steps per second (env steps x envs / s);
 `ratio` = env / raw; `env_physics_share` is the
 share of the env's own wall time spent inside `Batch.step` on its states, `env_other_ms_per_step` the rest

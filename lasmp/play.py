@@ -68,7 +68,7 @@ def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str
     with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl prints the networks
         runner = LasmpRunner(env, rsl_rl_cfg(cfg), log_dir=None, device="cpu")
     try:
-        runner.load(data["path"], load_cfg=DEPLOY_LOAD)
+        runner.load(data, load_cfg=DEPLOY_LOAD)
     except CheckpointError:
         raise
     except RuntimeError as err:  # state-dict shape mismatch: the config does not fit the weights

@@ -68,14 +68,15 @@ def default_log_dir(cfg: TrainCfg) -> str:
 
 def train(cfg) -> LasmpRunner:
     cfg = to_train_cfg(cfg)
-    if cfg.resume:  # fail before building anything if the checkpoint is unusable
-        read_checkpoint(cfg.resume)
+    checkpoint = None
+    if cfg.resume:  # fail before building anything if the checkpoint is unusable; read it once
+        checkpoint = read_checkpoint(cfg.resume, "cpu")
     log_dir = cfg.runner.log_dir or default_log_dir(cfg)
     Path(log_dir).mkdir(parents=True, exist_ok=True)
     OmegaConf.save(OmegaConf.structured(cfg), os.path.join(log_dir, "config.yaml"))
     runner = make_runner(cfg, log_dir)
     if cfg.resume:
-        runner.load(cfg.resume)
+        runner.load(checkpoint)
         print(f"resumed from {cfg.resume} at iteration {runner.current_learning_iteration}", flush=True)
     print(f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs, {cfg.runner.max_iterations} "
           f"iterations, logs in {log_dir}", flush=True)  # fmt: skip

@@ -54,7 +54,8 @@ def test_total_and_link_masses(model):
     print(f"total robot mass = {total:.3f} kg")
     assert 11.5 <= total <= 12.6
     assert model.body_mass[model.body("trunk").id] == pytest.approx(a1.TRUNK_MASS_KG)
-    np.testing.assert_allclose(model.body_ipos[model.body("trunk").id], a1.TRUNK_COM_M)
+    # a1.TRUNK_COM_M is the published trunk CoM rounded to 0.1 mm
+    np.testing.assert_allclose(model.body_ipos[model.body("trunk").id], a1.TRUNK_COM_M, atol=2e-4)
     for leg in a1.LEG_NAMES:
         for part, mass in (("hip", 0.696), ("thigh", 1.013), ("calf", 0.166), ("foot", 0.06)):
             assert model.body_mass[model.body(f"{leg}_{part}").id] == pytest.approx(mass)
@@ -176,3 +177,133 @@ def test_stands_still_on_floor():
     assert np.abs(d.qvel).max() < 0.01  # at rest
     up = d.xmat[trunk].reshape(3, 3)[:, 2]
     assert up[2] > np.cos(0.05)  # trunk stays level within ~3°
+
+
+# Published link inertials of Unitree's A1 description (unitree_ros, robots/a1_description,
+# xacro/const.xacro of 2020, commits 5346d55 / 6dbbff9; the same leg values are in later
+# urdf/a1.urdf): mass (kg), CoM (m) and inertia about the CoM (kg m^2) as
+# (ixx, iyy, izz, ixy, ixz, iyz), given for the front-left leg. The trunk is 4.713 kg; the model
+# lumps the description's 0.001 kg imu_link (at the trunk origin) into it.
+PUBLISHED_TRUNK = (
+    4.713,
+    (0.012731, 0.002186, 0.000515),
+    (0.01683993, 0.056579028, 0.064713601, 8.3902e-05, 0.000597679, 2.5134e-05),
+)
+PUBLISHED_IMU_LINK_KG = 0.001
+PUBLISHED_LEG = {
+    "hip": (
+        0.696,
+        (-0.003311, 0.000635, 3.1e-05),
+        (0.000469246, 0.00080749, 0.000552929, -9.409e-06, -3.42e-07, -4.66e-07),
+    ),
+    "thigh": (
+        1.013,
+        (-0.003237, -0.022327, -0.027326),
+        (0.005529065, 0.005139339, 0.001367788, 4.825e-06, 0.000343869, 2.2448e-05),
+    ),
+    "calf": (
+        0.166,
+        (0.006435, 0.0, -0.107388),
+        (0.002997972, 0.003014022, 3.2426e-05, 0.0, -0.000141163, 0.0),
+    ),
+    "foot": (0.06, (0.0, 0.0, 0.0), (9.6e-06, 9.6e-06, 9.6e-06, 0.0, 0.0, 0.0)),
+}
+PUBLISHED_WHOLE_BODY_INERTIA = (0.158, 0.400, 0.428)  # kg m^2 about the CoM, trunk frame, q_nominal (SPEC §2)
+PUBLISHED_TOTAL_MASS_KG = 12.45
+PUBLISHED_JOINT_FRICTION_NM = 0.2  # urdf/a1.urdf <dynamics friction="0.2" damping="0.01"/>
+PUBLISHED_JOINT_DAMPING = 0.01
+
+
+def _mirrored(leg: str, part: str):
+    """The description's mirroring: CoM x of the hip and its ixz flip front/rear (front_hind);
+    CoM y of hip and thigh and their iyz flip left/right (mirror); ixy of the hip flips with both,
+    of the thigh with left/right; calf and foot are not mirrored."""
+    mass, (cx, cy, cz), (ixx, iyy, izz, ixy, ixz, iyz) = PUBLISHED_LEG[part]
+    m = 1.0 if leg[1] == "L" else -1.0
+    f = 1.0 if leg[0] == "F" else -1.0
+    if part == "hip":
+        return mass, (cx * f, cy * m, cz), (ixx, iyy, izz, ixy * m * f, ixz * f, iyz * m)
+    if part == "thigh":
+        return mass, (cx, cy * m, cz), (ixx, iyy, izz, ixy * m, ixz, iyz * m)
+    return PUBLISHED_LEG[part]
+
+
+def _tensor(ixx, iyy, izz, ixy, ixz, iyz) -> np.ndarray:
+    return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+
+def _body_tensor(model: mujoco.MjModel, body: int) -> np.ndarray:
+    """The compiled inertia tensor about the body's CoM, in the body frame."""
+    r = np.zeros(9)
+    mujoco.mju_quat2Mat(r, model.body_iquat[body])
+    r = r.reshape(3, 3)
+    return r @ np.diag(model.body_inertia[body]) @ r.T
+
+
+def _whole_body_inertia(model: mujoco.MjModel) -> tuple[float, np.ndarray]:
+    """Total mass and inertia tensor about the whole-body CoM, trunk frame, at q_nominal."""
+    d = mujoco.MjData(model)
+    _set_nominal(model, d, 0.0)
+    mujoco.mj_forward(model, d)
+    trunk = model.body("trunk").id
+    com = d.subtree_com[trunk]
+    inertia = np.zeros((3, 3))
+    for b in range(1, model.nbody):
+        r = d.ximat[b].reshape(3, 3)
+        arm = d.xipos[b] - com
+        inertia += r @ np.diag(model.body_inertia[b]) @ r.T
+        inertia += model.body_mass[b] * (arm @ arm * np.eye(3) - np.outer(arm, arm))
+    rt = d.xmat[trunk].reshape(3, 3)
+    return float(model.body_subtreemass[trunk]), rt.T @ inertia @ rt
+
+
+def test_the_whole_body_inertia_at_the_nominal_stance_is_within_3_percent_of_the_published_values(model):
+    _, inertia = _whole_body_inertia(model)
+    diag = np.diag(inertia)
+    print(f"whole-body inertia about the CoM at q_nominal (trunk frame) = {np.round(diag, 4)} kg m^2")
+    np.testing.assert_allclose(diag, PUBLISHED_WHOLE_BODY_INERTIA, rtol=0.03)
+
+
+def test_the_total_mass_is_the_published_12_45_kg(model):
+    total, _ = _whole_body_inertia(model)
+    published = PUBLISHED_TRUNK[0] + PUBLISHED_IMU_LINK_KG + 4 * sum(v[0] for v in PUBLISHED_LEG.values())
+    assert published == pytest.approx(12.454)
+    assert total == pytest.approx(published, abs=1e-9)
+    assert total == pytest.approx(PUBLISHED_TOTAL_MASS_KG, abs=0.01)
+
+
+def test_each_joint_has_the_published_friction_and_damping(model):
+    for name in a1.JOINT_NAMES:
+        dof = model.joint(name).dofadr[0]
+        assert model.dof_frictionloss[dof] == pytest.approx(PUBLISHED_JOINT_FRICTION_NM)
+        assert model.dof_damping[dof] == pytest.approx(PUBLISHED_JOINT_DAMPING)
+    assert model.dof_frictionloss[model.joint(a1.ROOT_JOINT_NAME).dofadr[0]] == 0  # the free joint has none
+
+
+def test_each_link_has_the_published_mass_com_and_full_inertia_tensor_mirrored_per_leg(model):
+    trunk = model.body("trunk").id
+    mass, com, tensor = PUBLISHED_TRUNK
+    lumped = mass + PUBLISHED_IMU_LINK_KG
+    assert model.body_mass[trunk] == pytest.approx(lumped)
+    np.testing.assert_allclose(model.body_ipos[trunk], np.array(com) * mass / lumped, atol=1e-6)
+    np.testing.assert_allclose(_body_tensor(model, trunk), _tensor(*tensor), rtol=1e-6, atol=1e-9)
+    for leg in a1.LEG_NAMES:
+        for part in PUBLISHED_LEG:
+            b = model.body(f"{leg}_{part}").id
+            mass, com, tensor = _mirrored(leg, part)
+            assert model.body_mass[b] == pytest.approx(mass)
+            np.testing.assert_allclose(model.body_ipos[b], com, atol=1e-9, err_msg=f"{leg}_{part}")
+            got = _body_tensor(model, b)
+            np.testing.assert_allclose(got, _tensor(*tensor), rtol=1e-6, atol=1e-11, err_msg=f"{leg}_{part}")
+            # physically valid: positive definite, principal moments obey the triangle inequality
+            eig = np.linalg.eigvalsh(got)
+            assert np.all(eig > 0) and 2 * eig.max() <= eig.sum() + 1e-12
+    # two legs spelled out as in the description's expanded urdf/a1.urdf (guards the mirror rule)
+    rr_hip = _tensor(0.000469246, 0.00080749, 0.000552929, -9.409e-06, 3.42e-07, 4.66e-07)
+    np.testing.assert_allclose(_body_tensor(model, model.body("RR_hip").id), rr_hip, rtol=1e-6, atol=1e-11)
+    np.testing.assert_allclose(model.body_ipos[model.body("RR_hip").id], [0.003311, -0.000635, 3.1e-05])
+    fr_thigh = _tensor(0.005529065, 0.005139339, 0.001367788, -4.825e-06, 0.000343869, -2.2448e-05)
+    np.testing.assert_allclose(
+        _body_tensor(model, model.body("FR_thigh").id), fr_thigh, rtol=1e-6, atol=1e-11
+    )
+    np.testing.assert_allclose(model.body_ipos[model.body("FR_thigh").id], [-0.003237, 0.022327, -0.027326])

@@ -1,6 +1,8 @@
 """Checkpoint files: writing, reading, compatibility checks, the latest one of a run, its config.
 
-A checkpoint (format "lasmp-checkpoint-v1") is a dict saved with `torch.save`:
+A checkpoint (format "lasmp-checkpoint-v1") is a dict saved with `torch.save` that holds only tensors,
+numbers, strings and plain containers, and is read with `torch.load(weights_only=True)`: loading a
+file from elsewhere never runs code (the env's running state is stored by `lasmp.plainstate`):
 - the learner's state (`LasmpRunner.save`: all networks with their normalizers, both optimizers);
 - `iter`: the last *completed* iteration (a resume continues at iter + 1);
 - `config`: the resolved TrainCfg as a plain dict; `obs_layout` and `num_actions`;
@@ -18,6 +20,7 @@ It is written to a temporary file in the same directory and renamed over the tar
 
 from __future__ import annotations
 
+import pickle
 import re
 from pathlib import Path
 
@@ -60,7 +63,15 @@ def read_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
     if not path.exists():
         raise CheckpointError(f"checkpoint {path} does not exist")
     try:
-        data = torch.load(path, map_location=map_location, weights_only=False)
+        data = torch.load(path, map_location=map_location, weights_only=True)
+    except pickle.UnpicklingError as err:
+        if "weights only" not in str(err).lower():  # a pickle stream that is not a checkpoint
+            raise CheckpointError(f"checkpoint {path} is unreadable (not a checkpoint): {err}") from err
+        raise CheckpointError(
+            f"checkpoint {path} holds pickled Python objects, and unpickling them could run any code: "
+            "refused. Checkpoints of lasmp before plain running state (format 3) are like this. If you "
+            f"trust this file, convert it once with: python -m lasmp.algo.checkpoint convert --trust {path} OUT"
+        ) from None
     except Exception as err:  # truncated zip, not a torch file, ...
         raise CheckpointError(
             f"checkpoint {path} is unreadable (truncated or not a checkpoint): {err}"
@@ -72,6 +83,34 @@ def read_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
             raise CheckpointError(f"checkpoint {path} lacks '{key}'")
     data["path"] = str(path)
     return data
+
+
+def convert_trusted(src: str | Path, dst: str | Path) -> Path:
+    """Rewrite a checkpoint of an older lasmp (pickled running state) in today's plain format. This
+    UNPICKLES `src`, which runs whatever code it holds: only for a file the user trusts (the CLI
+    asks for --trust)."""
+    from lasmp.plainstate import pack
+
+    src, dst = Path(src), Path(dst)
+    if src.resolve() == dst.resolve():
+        raise CheckpointError(f"convert writes a new file: OUT must differ from IN ({src})")
+    if dst.exists():
+        raise CheckpointError(f"{dst} exists: convert never overwrites a file")
+    try:
+        data = torch.load(src, map_location="cpu", weights_only=False)
+    except Exception as err:
+        raise CheckpointError(f"checkpoint {src} is unreadable: {err}") from err
+    if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
+        raise CheckpointError(f"{src} is not a lasmp checkpoint (no format '{CHECKPOINT_FORMAT}')")
+    run = (data.get("env_state") or {}).get("run")
+    if run is not None:
+        from lasmp.envs.base_env import BaseEnv
+
+        run.update(format=BaseEnv.RUN_STATE_FORMAT, sim=pack(run["sim"]), attrs=pack(run["attrs"]))
+    data.pop("path", None)
+    atomic_torch_save(data, dst)
+    read_checkpoint(dst)  # the result must load safely
+    return dst
 
 
 def atomic_torch_save(obj, path: str | Path) -> None:
@@ -187,11 +226,23 @@ def main(argv=None) -> int:
     pol.add_argument("dst")
     inf = sub.add_parser("info", help="iteration, task, policy, size and kind of a checkpoint")
     inf.add_argument("path")
+    conv = sub.add_parser("convert", help="rewrite an older checkpoint (pickled objects) in the safe format; "
+                          "this unpickles IN, which can run code: only for a file you trust")  # fmt: skip
+    conv.add_argument("src")
+    conv.add_argument("dst")
+    conv.add_argument("--trust", action="store_true", help="required: I trust SRC (it will be unpickled)")
     args = p.parse_args(argv)
     try:
         if args.cmd == "policy":
             out = policy_checkpoint(args.src, args.dst)
             print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
+        elif args.cmd == "convert":
+            if not args.trust:
+                print("error: convert unpickles SRC, which can run any code it holds; give --trust if you "
+                      "trust the file", file=sys.stderr)  # fmt: skip
+                return 2
+            out = convert_trusted(args.src, args.dst)
+            print(f"wrote {out}: it loads without unpickling")
         else:
             data = read_checkpoint(args.path)
             cfg = data["config"]

@@ -199,9 +199,10 @@ class LasmpRunner(OnPolicyRunner):
         log.lenbuffer.extend(saved["lengths"])
 
     def load(
-        self, path: str, load_cfg: dict | None = None, strict: bool = True, map_location: str | None = None
+        self, path: str | dict, load_cfg: dict | None = None, strict: bool = True, map_location: str | None = None
     ):
-        data = read_checkpoint(path, map_location or self.device)
+        """Load a checkpoint: a path, or a `read_checkpoint` result (a tool reads its file once)."""
+        data = path if isinstance(path, dict) else read_checkpoint(path, map_location or self.device)
         check_compatible(data, self.env)
         if is_policy_only(data) and (load_cfg is None or load_cfg.get("optimizer", True)):
             raise CheckpointError(

@@ -20,7 +20,6 @@ the env's numpy generator and sent to the device.
 
 from __future__ import annotations
 
-import copy
 import warnings
 from abc import abstractmethod
 
@@ -32,6 +31,7 @@ from tensordict import TensorDict
 from lasmp.config import BaseEnvCfg
 from lasmp.envs.backends import make_backend
 from lasmp.envs.robot import OBS_DIM
+from lasmp.plainstate import PlainStateError, pack, unpack
 
 
 class BaseEnv(VecEnv):
@@ -66,8 +66,11 @@ class BaseEnv(VecEnv):
     # loop reads (a task lists its own in TASK_STATE)
     RUN_STATE = ("episode_length_buf", "history", "_obs", "_fresh", "fault_count", "nonfinite_obs_values")
     TASK_STATE: tuple[str, ...] = ()
-    # 2: the buffers are torch tensors on the env's device (1, unmarked: numpy, before the GPU backend)
-    RUN_STATE_FORMAT = 2
+    # dataclasses of the running state that a fresh env may not hold yet (None): the only classes a
+    # checkpoint's running state may build (`lasmp.plainstate`)
+    RUN_STATE_CLASSES: tuple[type, ...] = ()
+    # 3: plain data (`lasmp.plainstate`), loadable without unpickling; 2: pickled objects; 1: numpy
+    RUN_STATE_FORMAT = 3
 
     def state_dict(self, run: bool = True) -> dict:
         """The task's persistent state (e.g. the curriculum) and, with `run`, the running state of
@@ -77,7 +80,7 @@ class BaseEnv(VecEnv):
         if run:
             names = self.RUN_STATE + self.TASK_STATE
             d["run"] = {"format": self.RUN_STATE_FORMAT, "backend": self.cfg.backend, "num_envs": self.num_envs,
-                        "sim": self.sim.get_state(), "attrs": copy.deepcopy({k: getattr(self, k) for k in names})}  # fmt: skip
+                        "sim": pack(self.sim.get_state()), "attrs": pack({k: getattr(self, k) for k in names})}  # fmt: skip
         return d
 
     def load_state_dict(self, d: dict, run: bool = True) -> bool:
@@ -96,9 +99,13 @@ class BaseEnv(VecEnv):
                               "it is not restored, every env starts a new episode (the resume is not exact)",
                               stacklevel=2)  # fmt: skip
                 return False
-            self.sim.set_state(saved["sim"])
-            for key, value in copy.deepcopy(saved["attrs"]).items():
-                setattr(self, key, _on_device(value, self.device))
+            live = {k: getattr(self, k) for k in self.RUN_STATE + self.TASK_STATE}
+            if set(saved["attrs"]) != set(live):
+                raise PlainStateError(f"saved running state holds {sorted(saved['attrs'])}, this env {sorted(live)}")
+            attrs = unpack(saved["attrs"], live, self.device, "running state", self.RUN_STATE_CLASSES)  # checked before any change
+            self.sim.set_state(unpack(saved["sim"], name="physics state"))
+            for key, value in attrs.items():
+                setattr(self, key, value)
             return True
         return False
 
@@ -230,20 +237,3 @@ def column_runs(widths: dict[str, int], whole: str) -> dict[str, slice]:
         start += width
     runs[whole] = slice(None)
     return runs
-
-
-def _on_device(value, device):
-    """A loaded buffer on the env's device (a checkpoint is mapped to the learner's device, which the
-    cpu backend's env does not share): tensors, TensorDicts, and the tensors inside dicts, lists and
-    the small objects the env keeps (readouts, step states, the device trajectories, reward sums)."""
-    if isinstance(value, (torch.Tensor, TensorDict)):
-        return value.to(device)
-    if isinstance(value, dict):
-        return {k: _on_device(v, device) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_on_device(v, device) for v in value]
-    if hasattr(value, "__dict__") and not isinstance(value, type):
-        for k, v in vars(value).items():
-            if isinstance(v, (torch.Tensor, TensorDict, dict, list)) or hasattr(v, "__dict__"):
-                setattr(value, k, _on_device(v, device))
-    return value

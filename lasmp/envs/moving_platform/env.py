@@ -303,6 +303,7 @@ class MovingPlatformEnv(BaseEnv):
     TASK_STATE = ("action", "action_prev", "tau_prev", "q_dot_prev", "contact_prev", "t_air_s", "t_contact_s",
                   "traj", "traj_dev", "traj_level", "_file_cursor", "intrinsics", "x_imp", "rewards", "readout",
                   "last_state")  # fmt: skip
+    RUN_STATE_CLASSES = (StepState,)
 
     def _task_state(self) -> dict:
         return {"curriculum": self.curriculum.state_dict() if self.curriculum is not None else None}

@@ -221,6 +221,16 @@ class RewardManager:
         self._episode_sums += weighted
         return weighted.sum(dim=0)
 
+    def state_dict(self) -> dict:
+        """The running episode sums per term (a resume continues them)."""
+        return {"term_names": list(self.term_names), "episode_sums": self._episode_sums}
+
+    def load_state_dict(self, d: dict) -> None:
+        if list(d["term_names"]) != self.term_names or tuple(d["episode_sums"].shape) != tuple(self._episode_sums.shape):
+            raise ValueError(f"saved reward sums are for terms {list(d['term_names'])} x {tuple(d['episode_sums'].shape)}, "
+                             f"this manager has {self.term_names} x {tuple(self._episode_sums.shape)}")  # fmt: skip
+        self._episode_sums = d["episode_sums"].to(self.device).clone()
+
     def reset(self, env_ids: torch.Tensor | Sequence[int] | None = None) -> dict[str, float]:
         """Mean episode sum per term over `env_ids` (all envs if None), then zero them."""
         if env_ids is None:

@@ -20,6 +20,15 @@ class DevicePoly:
         self.coeffs = self._t(poly.coeffs)  # (M, S, D+1, 6), zero padded
         self._gathered: torch.Tensor | None = None  # the step's coefficients, reused
 
+    def state_dict(self) -> dict:
+        return {"breaks_s": self.breaks_s, "n_segments": self.n_segments, "coeffs": self.coeffs}
+
+    def load_state_dict(self, d: dict) -> None:
+        """Take saved rows (a checkpoint's), on this mirror's device and dtype."""
+        self.breaks_s, self.coeffs = self._t(d["breaks_s"]), self._t(d["coeffs"])
+        self.n_segments = torch.as_tensor(d["n_segments"], device=self.device)
+        self._gathered = None
+
     def _t(self, x) -> torch.Tensor:
         return torch.as_tensor(x, dtype=self.dtype, device=self.device)
 

@@ -1,0 +1,161 @@
+"""Checkpoints never run code: a hostile file through every entry point, the plain running state, and
+the explicit, opt-in conversion of an older (pickled) checkpoint."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+from tensordict import TensorDict
+
+from lasmp.algo.checkpoint import CHECKPOINT_FORMAT, CheckpointError, convert_trusted, read_checkpoint
+from lasmp.plainstate import PlainStateError, pack, unpack
+from lasmp.train import make_runner, to_train_cfg, train
+from lasmp.train_cfg import register_configs
+
+ROOT = Path(__file__).resolve().parents[1]
+register_configs()
+
+
+class _Payload:
+    """Unpickling this writes `marker`: what a hostile checkpoint would do (any code could run)."""
+
+    def __init__(self, marker: Path):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (exec, (f"open({self.marker!r}, 'w').write('ran')",))
+
+
+def hostile_checkpoint(path: Path, marker: Path) -> Path:
+    """A file that the old loader (weights_only=False) accepted as a checkpoint, with a payload."""
+    data = {"format": CHECKPOINT_FORMAT, "actor_state_dict": {}, "critic_state_dict": {}, "config": {},
+            "obs_layout": {}, "num_actions": 12, "iter": 0, "env_state": {"payload": _Payload(marker)}}  # fmt: skip
+    torch.save(data, path)
+    return path
+
+
+ENTRY_POINTS = {
+    "play": lambda ckpt: [sys.executable, str(ROOT / "play.py"), "--checkpoint", str(ckpt), "--steps", "1"],
+    "evaluate": lambda ckpt: [sys.executable, str(ROOT / "evaluate.py"), "--checkpoint", str(ckpt),
+                              "--num-trajectories", "1", "--batch-envs", "1"],  # fmt: skip
+    "train_resume": lambda ckpt: [sys.executable, str(ROOT / "train.py"), f"resume={ckpt}", "env.num_envs=4",
+                                  "runner.max_iterations=1", f"runner.log_dir={ckpt.parent / 'run'}"],  # fmt: skip
+    "checkpoint_info": lambda ckpt: [sys.executable, "-m", "lasmp.algo.checkpoint", "info", str(ckpt)],
+}
+
+
+@pytest.mark.parametrize("entry", sorted(ENTRY_POINTS))
+def test_a_hostile_checkpoint_is_refused_by_every_entry_point_without_running_its_payload(tmp_path, entry):
+    marker = tmp_path / "marker"
+    ckpt = hostile_checkpoint(tmp_path / "model_0.pt", marker)
+    out = subprocess.run(ENTRY_POINTS[entry](ckpt), capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert not marker.exists(), f"{entry} ran the checkpoint's code"
+    assert out.returncode != 0
+    text = out.stdout + out.stderr
+    assert "pickled Python objects" in text and "refused" in text, text[-2000:]
+    assert "Traceback" not in text, text[-2000:]
+
+
+def test_the_old_loader_would_have_run_the_payload(tmp_path):
+    """The test above can fail: the same file, unpickled as before, does run its code."""
+    marker = tmp_path / "marker"
+    torch.load(hostile_checkpoint(tmp_path / "m.pt", marker), weights_only=False)
+    assert marker.exists()
+
+
+def tiny(tmp_path, **over):
+    cfg = {
+        "env": {"num_envs": 4},
+        "runner": {"max_iterations": 2, "log_dir": str(tmp_path), "save_interval": 1, "num_steps_per_env": 5},
+        "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
+        "algo": {"num_mini_batches": 2, "num_learning_epochs": 1},
+        "torch_threads": 1,
+    }
+    return to_train_cfg(OmegaConf.merge(OmegaConf.create(cfg), OmegaConf.create(over)))
+
+
+@pytest.mark.parametrize("task", ["moving_platform", "rough_static"])
+def test_a_full_checkpoint_loads_with_weights_only_and_holds_no_project_class(tmp_path, task):
+    with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
+        cfg = compose("config", overrides=[f"task={task}", "env.num_envs=4", "runner.max_iterations=2",
+                                           f"runner.log_dir={tmp_path}", "torch_threads=1", "runner.save_interval=1",
+                                           "runner.num_steps_per_env=5", "policy.actor_hidden_dims=[32,32,32]"])  # fmt: skip
+    train(cfg)
+    data = torch.load(tmp_path / "model_1.pt", weights_only=True)  # raises on any pickled class
+    assert data["env_state"]["run"]["format"] == 3
+
+    def walk(obj):
+        if isinstance(obj, dict):
+            for v in obj.values():
+                walk(v)
+        elif isinstance(obj, (list, tuple)):
+            for v in obj:
+                walk(v)
+        else:
+            assert isinstance(obj, (torch.Tensor, bool, int, float, str, type(None))), type(obj)
+
+    walk(data)
+
+
+@dataclasses.dataclass
+class _Pair:
+    a: torch.Tensor
+    b: np.ndarray
+
+
+def test_plain_state_round_trips_arrays_tensordicts_dataclasses_and_stateful_objects():
+    td = TensorDict({"x": torch.arange(6.0).view(3, 2), "y": {"z": torch.ones(3)}}, batch_size=[3])
+    live = {"pair": _Pair(torch.zeros(2), np.zeros(3)), "td": td, "arr": np.arange(4, dtype=np.int32),
+            "none": None, "n": np.float64(2.5), "t": (1, "s"), "dtype": torch.float64}  # fmt: skip
+    saved = {"pair": _Pair(torch.tensor([1.0, 2.0]), np.array([3.0, 4.0, 5.0])), "td": td, "arr": live["arr"],
+             "none": None, "n": np.float64(2.5), "t": (1, "s"), "dtype": torch.float64}  # fmt: skip
+    back = unpack(pack(saved), live)
+    assert torch.equal(back["pair"].a, saved["pair"].a) and np.array_equal(back["pair"].b, saved["pair"].b)
+    assert isinstance(back["pair"].b, np.ndarray) and back["arr"].dtype == np.int32
+    assert torch.equal(back["td"]["y", "z"], td["y", "z"]) and back["td"].batch_size == td.batch_size
+    assert back["n"] == 2.5 and back["t"] == (1, "s") and back["dtype"] is torch.float64 and back["none"] is None
+    assert back["pair"] is not live["pair"]  # a copy of the live instance, not the live one changed
+
+
+def test_plain_state_refuses_a_class_the_live_env_does_not_hold():
+    saved = pack({"pair": _Pair(torch.zeros(1), np.zeros(1))})
+    with pytest.raises(PlainStateError, match="holds a _Pair, this env nothing"):
+        unpack(saved, {"pair": None})
+    saved["pair"]["class"] = "os.system"
+    with pytest.raises(PlainStateError, match="os.system"):
+        unpack(saved, {"pair": _Pair(torch.zeros(1), np.zeros(1))})
+    with pytest.raises(PlainStateError, match="cannot be stored"):
+        pack({"f": open})
+
+
+def test_an_older_pickled_checkpoint_is_refused_with_the_convert_command_and_converts_on_trust(tmp_path):
+    runner = train(tiny(tmp_path / "run"))
+    env = runner.env
+    data = torch.load(tmp_path / "run" / "model_1.pt", weights_only=True)
+    # the format before plain state (2): the running state's objects pickled as they are
+    names = env.RUN_STATE + env.TASK_STATE
+    data["env_state"]["run"].update(format=2, sim=env.sim.get_state(),
+                                    attrs=copy.deepcopy({k: getattr(env, k) for k in names}))  # fmt: skip
+    torch.save(data, tmp_path / "old.pt")
+    with pytest.raises(CheckpointError, match="convert --trust"):
+        read_checkpoint(tmp_path / "old.pt")
+    refused = subprocess.run([sys.executable, "-m", "lasmp.algo.checkpoint", "convert", str(tmp_path / "old.pt"),
+                              str(tmp_path / "new.pt")], capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert refused.returncode == 2 and "--trust" in refused.stderr and not (tmp_path / "new.pt").exists()
+    convert_trusted(tmp_path / "old.pt", tmp_path / "new.pt")
+    fresh = make_runner(tiny(tmp_path / "fresh"), None)
+    fresh.load(str(tmp_path / "new.pt"))  # the converted running state restores
+    assert fresh.current_learning_iteration == 2
+    assert torch.equal(fresh.env.episode_length_buf, env.episode_length_buf)
+    assert np.array_equal(fresh.env.sim.get_state()["state"], env.sim.get_state()["state"])
+    with pytest.raises(CheckpointError, match="never overwrites"):
+        convert_trusted(tmp_path / "old.pt", tmp_path / "new.pt")

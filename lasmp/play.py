@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import json
 import shutil
 import sys
 from pathlib import Path
@@ -30,9 +31,10 @@ import torch
 
 from lasmp.algo.checkpoint import CheckpointError, checkpoint_cfg, read_checkpoint
 from lasmp.algo.runner import LasmpRunner
-from lasmp.atomic import atomic_write_with
+from lasmp.atomic import atomic_open, atomic_write_with
 from lasmp.config import ConfigError
 from lasmp.envs.trajectories import TrajectoryFileError
+from lasmp.modules.export import deploy_metadata, metadata_props
 from lasmp.render.renderer import (
     SNAPSHOT_COUNT,
     EnvRenderer,
@@ -88,8 +90,12 @@ def obs_window(obs) -> torch.Tensor:
 # ---------------------------------------------------------------------------------------------
 # Export
 # ---------------------------------------------------------------------------------------------
-def export_policy(policy, fmt: str, out_dir: str | Path) -> Path:
-    """Write the deployable policy (input obs_window (n, H+1, D), output actions) as ONNX or TorchScript."""
+def export_policy(policy, fmt: str, out_dir: str | Path, metadata: dict | None = None) -> Path:
+    """Write the deployable policy (input obs_window (1, H+1, D), output actions) as ONNX or TorchScript.
+
+    With `metadata` (`export_metadata`), the file carries it (ONNX: `metadata_props`, each value
+    JSON-encoded; TorchScript: the extra file `policy.json`) and `policy.json` is written beside it.
+    """
     out_dir = Path(out_dir)
     if fmt == "onnx":
         module = policy.as_onnx(False).eval()
@@ -107,18 +113,37 @@ def export_policy(policy, fmt: str, out_dir: str | Path) -> Path:
                 external_data=False,  # one self-contained file (the temp name must not leak into it)
                 verbose=False,
             )
+            if metadata is not None:
+                import onnx
+
+                model = onnx.load(tmp)
+                onnx.helper.set_model_props(model, metadata_props(metadata))
+                onnx.save(model, tmp)
 
     elif fmt == "jit":
         module = torch.jit.script(policy.as_jit().eval())
         path = out_dir / "policy.pt"
+        extra = {"policy.json": json.dumps(metadata)} if metadata is not None else {}
 
         def write(tmp: str) -> None:
-            module.save(tmp)
+            module.save(tmp, _extra_files=extra)
 
     else:
         raise ValueError(f"export format must be onnx or jit, got {fmt!r}")
     atomic_write_with(path, write)
+    if metadata is not None:
+        # one key a line, each value compact: JSON that reads like the list in docs/deploy.md
+        lines = [f"  {json.dumps(key)}: {json.dumps(value)}" for key, value in metadata.items()]
+        with atomic_open(out_dir / "policy.json", "w") as f:
+            f.write("{\n" + ",\n".join(lines) + "\n}\n")
     return path
+
+
+def export_metadata(policy, cfg, checkpoint) -> dict:
+    """The deployment metadata (`lasmp.modules.export.deploy_metadata`) of `policy`, loaded from
+    `checkpoint` (a file or a run directory) with config `cfg`."""
+    data = read_checkpoint(checkpoint)
+    return deploy_metadata(policy, cfg, data["iter"], Path(data["path"]).name)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -250,7 +275,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.scenario:
             trajectories, overrides = scenario_file(args.scenario)
         try:
-            env, policy, _ = load_deploy_policy(
+            env, policy, cfg = load_deploy_policy(
                 args.checkpoint, args.num_envs, args.seed, trajectories, overrides
             )
         finally:
@@ -265,7 +290,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
     if args.export:
-        print(f"exported {args.export} policy to {export_policy(policy, args.export, args.out)}", flush=True)
+        path = export_policy(policy, args.export, args.out, export_metadata(policy, cfg, args.checkpoint))
+        sidecar = path.parent / "policy.json"
+        print(f"exported {args.export} policy to {path} (metadata in {sidecar})", flush=True)
 
     closers = []
     video = snapshots = viewer = None

@@ -74,7 +74,7 @@ def test_export_onnx_matches_torch(run_dir, loaded, tmp_path, capsys):
     )
     path = tmp_path / "policy.onnx"
     assert str(path) in capsys.readouterr().out
-    assert os.listdir(tmp_path) == ["policy.onnx"]  # self-contained, no temp file left
+    assert sorted(os.listdir(tmp_path)) == ["policy.json", "policy.onnx"]  # the model and its sidecar, no temp file
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     assert [i.name for i in sess.get_inputs()] == ["obs_window"]
     env, policy, _ = loaded

@@ -3,9 +3,13 @@
 Runs rsl_rl's own `learn()` for a few iterations and splits each one into physics
 (`Batch.step`), policy inference (`alg.act`: actor + critic forward), the rest of the env step
 (observations, rewards, resets), the PPO update and the ROA (estimator) update. Prints one JSON
-object with the seconds per iteration of each part and the end-to-end policy steps per second.
+object with the seconds per iteration of each part, the end-to-end policy steps per second and the
+learner it ran (`algo.precision` and what it resolved to: bfloat16 autocast, fused Adam, compiled
+MLPs). The untimed warm-up iterations take the compilation (and any recompilation) out of the
+timing; `compiles_timed` counts the graphs torch.compile still built while timing (should be 0).
 
-    python bench/train_iteration.py --json [--num-envs 1024] [--iterations 3] [override ...]
+    python bench/train_iteration.py --json [--num-envs 1024] [--iterations 3] [--warmup 2] [override ...]
+    python bench/train_iteration.py --json algo.precision=float32
     python bench/train_iteration.py --json --backend warp --device cuda --num-envs 8192
 """
 
@@ -15,6 +19,7 @@ import argparse
 import contextlib
 import io
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -40,10 +45,17 @@ def timed(obj, name: str, totals: dict, key: str) -> None:
     setattr(obj, name, wrapper)
 
 
+def compiled_graphs() -> int:
+    """Graphs torch.compile has built in this process so far (0 before it is first used)."""
+    utils = sys.modules.get("torch._dynamo.utils")
+    return int(utils.counters["stats"]["unique_graphs"]) if utils is not None else 0
+
+
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--num-envs", type=int, default=None, help="default: the config's (1024)")
     p.add_argument("--iterations", type=int, default=3)
+    p.add_argument("--warmup", type=int, default=2, help="untimed iterations first (compilation and such)")
     p.add_argument("--backend", choices=("cpu", "warp"), default=None, help="physics backend (env.backend)")
     p.add_argument("--device", default=None, help="learner device, and the warp backend's (cpu, cuda[:N])")
     p.add_argument("--json", action="store_true")
@@ -63,12 +75,17 @@ def main(argv=None) -> dict:
     timed(runner.env, "step", totals, "env_step")
     timed(runner.alg, "update", totals, "update_ppo_and_roa")
     timed(runner.alg, "update_roa", totals, "update_roa")
-    runner.learn(1)  # warm-up: allocations, first-touch of buffers
+    with contextlib.redirect_stdout(io.StringIO()) if args.json else contextlib.nullcontext():
+        # warm-up: compilation (the rollout's and the update's graphs; a second iteration catches the
+        # recompilations a new shape or mode brings), allocations, first-touch of buffers
+        runner.learn(max(args.warmup, 1))
     for key in totals:
         totals[key] = 0.0
+    graphs_before = compiled_graphs()
     start = time.perf_counter()
     runner.learn(args.iterations)
     wall = time.perf_counter() - start
+    plan = runner.alg.learner_precision
     n = args.iterations
     steps = n * cfg.env.num_envs * cfg.runner.num_steps_per_env
     result = {
@@ -76,6 +93,12 @@ def main(argv=None) -> dict:
         "device": cfg.device,
         "num_envs": cfg.env.num_envs,
         "iterations": n,
+        "warmup_iterations": max(args.warmup, 1),
+        "precision": plan.precision,
+        "bf16_autocast": plan.bf16_autocast,
+        "fused_adam": plan.fused_adam,
+        "compiled_mlps": plan.compile_mlps,
+        "compiles_timed": compiled_graphs() - graphs_before,
         "s_per_iteration": round(wall / n, 3),
         "physics_s": round(totals["physics"] / n, 3),
         "policy_inference_s": round(totals["inference"] / n, 3),
@@ -87,7 +110,7 @@ def main(argv=None) -> dict:
         "learner_over_physics": round(totals["update_ppo_and_roa"] / totals["physics"], 3),
     }
     if args.json:
-        print(json.dumps(result))
+        print(json.dumps(result | {"learner": plan.line()}))
     else:
         for k, v in result.items():
             print(f"{k:>20}: {v}")

@@ -28,6 +28,7 @@ ENV_SCHEMAS: dict[str, type[BaseEnvCfg]] = {
     "rough_static": RoughStaticCfg,
 }
 TASKS = tuple(ENV_SCHEMAS)
+PRECISIONS = ("auto", "float32", "bfloat16")  # algo.precision (lasmp/algo/precision.py)
 
 
 def env_schema(task: str) -> type[BaseEnvCfg]:
@@ -79,13 +80,20 @@ class AlgoCfg:
     # (README "Results"; runs before that finding used 2)
     estimate_rollout_every: int = 1
     estimate_rollout_start: int = 100
-    fused_adam: bool = False  # (ours) both Adams as one fused kernel (bench/train_iteration.py)
-    # rsl_rl's bfloat16 autocast of the PPO update's forward pass, extended to the ROA pass
-    use_mixed_precision: bool = False
-    # (ours) torch.compile the networks in place: the actor's and critic's MLPs, the implicit encoder's
-    # and the history estimators (fuses their element-wise work; the first iteration compiles, and a CPU
-    # needs a C++ compiler); checkpoints are unchanged
-    compile_mlps: bool = False
+    # (ours) how the learner computes (lasmp/algo/precision.py): auto = bfloat16 autocast where the
+    # hardware multiplies bfloat16 natively (a CPU with AVX-512 BF16 / AMX, a GPU with bfloat16), the
+    # fused Adam and compiled MLPs where they work, each falling back with a line at start-up saying
+    # why; float32 = none of them (the learner of the runs trained before auto: a seeded run repeats
+    # their curve); bfloat16 = the autocast forced
+    precision: str = "auto"
+    # per-part overrides of precision (null: as precision decides). fused_adam: both Adams as one
+    # fused kernel; use_mixed_precision: rsl_rl's bfloat16 autocast of the PPO update's forward pass,
+    # extended to the ROA pass; compile_mlps: torch.compile in place the actor's and critic's MLPs, the
+    # implicit encoder's and the history estimators (the first iteration compiles; a CPU needs a C++
+    # compiler; checkpoints are unchanged). Configs saved before `precision` hold false for all three
+    fused_adam: bool | None = None
+    use_mixed_precision: bool | None = None
+    compile_mlps: bool | None = None
 
 
 @dataclass
@@ -95,6 +103,8 @@ class RunnerCfg:
     save_interval: int = 100
     log_dir: str | None = None  # default: logs/<task>/<policy>/<date_time>
     check_for_nan: bool = True
+    # stop when more than this fraction of an iteration's env-steps fault (the physics diverges); 1: never
+    max_fault_fraction: float = 0.5
 
 
 @dataclass
@@ -104,6 +114,9 @@ class TrainCfg:
     device: str = "cpu"  # where the learner runs, and the physics with env.backend=warp (cpu backend: the CPU)
     torch_threads: int = 0  # CPU threads of torch for the learner; 0 = torch's default (all cores)
     resume: str | None = None  # a checkpoint file or a run directory (its latest model_<N>.pt)
+    # on resume, start every env's episode anew instead of restoring the envs' running state: needed
+    # when env.num_envs differs from the checkpoint's (the resume is then not exact)
+    resume_drop_env_state: bool = False
     # the task's env config, ENV_SCHEMAS[task]. Hydra composes it from the `env` group (typed: unknown keys
     # fail naming them); a plain dict (a checkpoint's saved config) is built with the task's schema by
     # lasmp.train.to_train_cfg. Any, not BaseEnvCfg: a task's keys must merge into it before its type is known
@@ -156,10 +169,16 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
             f"algo.estimate_rollout_every and algo.estimate_rollout_start must be >= 0, got "
             f"{a.estimate_rollout_every}, {a.estimate_rollout_start}"
         )
+    if a.precision not in PRECISIONS:
+        raise ConfigError(
+            f"algo.precision must be one of {' | '.join(PRECISIONS)}, got {a.precision!r}"
+        )
     if r.num_steps_per_env < 1 or r.max_iterations < 0 or r.save_interval < 1:
         raise ConfigError(
             "runner.num_steps_per_env and runner.save_interval must be >= 1, max_iterations >= 0"
         )
+    if not 0 <= r.max_fault_fraction <= 1:
+        raise ConfigError(f"runner.max_fault_fraction must be in [0, 1], got {r.max_fault_fraction}")
     if cfg.env.num_envs * r.num_steps_per_env < a.num_mini_batches:
         raise ConfigError(
             f"env.num_envs * runner.num_steps_per_env ({cfg.env.num_envs * r.num_steps_per_env}) must be at least "

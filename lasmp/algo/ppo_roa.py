@@ -28,6 +28,7 @@ import torch
 import torch.nn as nn
 from rsl_rl.algorithms import PPO
 
+from lasmp.algo.precision import resolve_precision
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
 
 
@@ -42,18 +43,25 @@ class PPOROA(PPO):
         estimator_epochs: int = 1,
         estimate_rollout_every: int = 0,
         estimate_rollout_start: int = 0,
-        fused_adam: bool = False,
-        compile_mlps: bool = False,
+        precision: str = "auto",
+        use_mixed_precision: bool | None = None,
+        fused_adam: bool | None = None,
+        compile_mlps: bool | None = None,
         **kwargs,
     ) -> None:
-        super().__init__(actor, critic, storage, **kwargs)
-        if compile_mlps:  # in place: the parameters and their state-dict names stay as they are
-            for net in (self.actor.mlp, self.critic.mlp, self.actor.encoder.mlp, *self.actor.estimators()):
-                net.compile()
-        if fused_adam:  # the same Adam in one fused kernel; on a CPU PyTorch otherwise loops per tensor
+        device = kwargs.get("device", "cpu")
+        plan = resolve_precision(precision, device, use_mixed_precision, fused_adam, compile_mlps)
+        self.learner_precision = plan
+        super().__init__(actor, critic, storage, use_mixed_precision=plan.bf16_autocast, **kwargs)
+        self._fused = plan.fused_adam
+        if plan.fused_adam:  # the same Adam in one fused kernel; on a CPU PyTorch otherwise loops per tensor
             self.optimizer = torch.optim.Adam(
                 chain(self.actor.parameters(), self.critic.parameters()), lr=self.learning_rate, fused=True
             )
+        # auto: the compiler is checked, the networks compiled and the line printed when training starts
+        self._learner_started, self._compiled = False, False
+        if compile_mlps:  # forced: compiled now, as the switch always did
+            self._compile_networks()
         if roa_lambda < 0:
             raise ValueError(f"algorithm.roa_lambda must be >= 0, got {roa_lambda}")
         if estimator_epochs < 1:
@@ -64,7 +72,7 @@ class PPOROA(PPO):
         self.estimate_rollout_start = estimate_rollout_start
         self._estimator_params = list(actor.estimator_parameters())
         self.estimator_optimizer = torch.optim.Adam(
-            self._estimator_params, lr=estimator_learning_rate, fused=True if fused_adam else None
+            self._estimator_params, lr=estimator_learning_rate, fused=True if plan.fused_adam else None
         )
         # (T, N, k): the estimates each rollout step acted on, and how many steps of this rollout hold them
         self._rollout_estimates: torch.Tensor | None = None
@@ -77,8 +85,28 @@ class PPOROA(PPO):
         self.actor.act_on_estimates = on
         return on
 
+    def start_learner(self) -> None:
+        """Once, when training starts (the first `act` or `update`, so that loading a policy to play or
+        evaluate compiles nothing): check the compiler, compile the networks, print what runs."""
+        if self._learner_started:
+            return
+        self._learner_started = True
+        plan = self.learner_precision
+        plan.check_compiler(self.device)
+        if plan.compile_mlps:
+            self._compile_networks()
+        print(plan.line(), flush=True)
+
+    def _compile_networks(self) -> None:
+        """torch.compile in place: the parameters and their state-dict names stay as they are."""
+        if not self._compiled:
+            for net in (self.actor.mlp, self.critic.mlp, self.actor.encoder.mlp, *self.actor.estimators()):
+                net.compile()
+            self._compiled = True
+
     def act(self, obs):
         """rsl_rl's `act`; on the estimates, also keeps the estimates the actor acted on for the update."""
+        self.start_learner()
         self.actor.last_detached_estimates = None
         actions = super().act(obs)
         estimates = self.actor.last_detached_estimates
@@ -91,6 +119,7 @@ class PPOROA(PPO):
         return actions
 
     def update(self) -> dict[str, float]:
+        self.start_learner()
         on_estimates = self.actor.act_on_estimates
         stored = self.storage.observations
         # PPO's mini-batches gather only what the actor and critic read (a view: nothing is copied)
@@ -167,6 +196,7 @@ class PPOROA(PPO):
     def save(self) -> dict:
         saved = super().save()
         saved["estimator_optimizer_state_dict"] = self.estimator_optimizer.state_dict()
+        saved["learner_precision"] = self.learner_precision.record()  # what ran; the config: what was asked
         return saved
 
     def load(self, loaded_dict: dict, load_cfg: dict | None, strict: bool) -> bool:
@@ -175,4 +205,17 @@ class PPOROA(PPO):
             load_cfg is None or load_cfg.get("optimizer")
         ) and "estimator_optimizer_state_dict" in loaded_dict:
             self.estimator_optimizer.load_state_dict(loaded_dict["estimator_optimizer_state_dict"])
+        for opt in (self.optimizer, self.estimator_optimizer):
+            self._keep_own_kernel(opt)
         return load_iteration
+
+    def _keep_own_kernel(self, opt: torch.optim.Optimizer) -> None:
+        """A loaded state dict brings its run's Adam kernel (fused or not, in its param groups) and
+        where that kernel keeps its step counts: put back this learner's."""
+        for group in opt.param_groups:
+            group["fused"], group["foreach"] = (True if self._fused else None), None
+            for p in group["params"]:
+                state = opt.state.get(p, {})
+                if "step" in state:  # fused: a float32 tensor on the parameter's device; else on the CPU
+                    where = p.device if self._fused else "cpu"
+                    state["step"] = state["step"].to(device=where, dtype=torch.float32)

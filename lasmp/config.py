@@ -74,9 +74,9 @@ class SimCfg:
     num_threads: int = 0  # Batch worker threads; 0 = all cores
     solver_iterations: int = 20  # fewer than MuJoCo's 100: contacts converge well before (ours)
     solver_tolerance: float = 1e-8  # MuJoCo's default; MuJoCo Warp raises it to at least 1e-6
-    cone: str = "pyramidal"  # MuJoCo friction cone: pyramidal (MuJoCo's default) | elliptic
-    impratio: float = 1.0  # frictional-to-normal constraint impedance ratio (MuJoCo's default 1)
-    noslip_iterations: int = 0  # MuJoCo's no-slip post-solver passes (0 = off): removes soft-contact creep
+    cone: str = "elliptic"  # pyramidal | elliptic; elliptic (ours): the same mu whichever way a foot slips
+    impratio: float = 1.0  # friction/normal impedance ratio; 1 (ours): at 10 the stance jitters, slides early
+    noslip_iterations: int = 2  # no-slip passes (0 = off); 2 (ours): without, feet creep at any tilt
     warp_contacts_per_env: int = 64  # warp only: contact slots per env (MuJoCo Warp preallocates)
     warp_constraints_per_env: int = 256  # warp only: constraint rows per env
 

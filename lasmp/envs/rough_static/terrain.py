@@ -112,6 +112,9 @@ def build_spec(terrain: TerrainCfg, sim: SimCfg) -> tuple[mujoco.MjSpec, Heightf
     spec.option.iterations = sim.solver_iterations
     spec.option.tolerance = sim.solver_tolerance
     spec.option.ls_iterations = max(5, sim.solver_iterations // 2)
+    spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{sim.cone.upper()}")
+    spec.option.impratio = sim.impratio
+    spec.option.noslip_iterations = sim.noslip_iterations
     world = spec.worldbody
     world.add_light(pos=[0, 0, 12], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
 

@@ -6,7 +6,10 @@ from the same steps (counted up to the first collision, as in lasmp.eval.metrics
 - height violation with h_des = 0.37 m measured from the platform's centre (its CoM, 0.27 m above
   the top surface) and from its top surface;
 - position deviation in the platform frame and in a frame that follows the platform's centre
-  but keeps the world's axes (translating, not rotating).
+  but keeps the world's axes (translating, not rotating);
+- rotation deviation as the trunk's tilt change in the world (`rot_world`, the metric's reading)
+  and as its rotation relative to the platform (`rot_platform`; rows written before the world
+  reading existed have it as `rot`).
 A candidate world is a trajectory construction (kind, degree) plus env overrides (platform
 tracking, contacts, initial placement). Trajectories of a world are drawn with Xi_eval's seed
 and stream, so candidates differ only by their construction.
@@ -31,8 +34,8 @@ from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.robot import as_numpy
 from lasmp.eval import benchmark as bm
 from lasmp.eval.cli import eval_env_overrides
-from lasmp.eval.metrics import EpisodeMetrics
-from lasmp.eval.run import BenchmarkSource, relative_pose
+from lasmp.eval.metrics import EpisodeMetrics, TrunkPose, metric_h_des_p_m
+from lasmp.eval.run import BenchmarkSource
 
 PAPER = {"collision": (0.612, 0.29), "height_violation": (0.142, 0.07), "position_deviation_m": (0.394, 0.04),
          "rotation_deviation_rad": (0.182, 0.07), "power_w": (1.031, 0.17)}  # fmt: skip
@@ -104,29 +107,27 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
     cfg = build_env_cfg(env_overrides, schema=MovingPlatformCfg)
     env = MovingPlatformEnv(cfg)
     top = env.plf_top_m
-    h_des = {"centre": cfg.rewards.h_des_m, "surface": top + cfg.rewards.h_des_m}
+    h_des = {"centre": cfg.rewards.h_des_m, "surface": metric_h_des_p_m(top)}
     source = BenchmarkSource(world, episodes, env.num_envs)
     env.episode_source = source
-    # one accumulator per pair of readings, both fed the same steps: (h_des from the centre, platform
-    # frame) and (h_des from the surface, translating frame); rotation and power are the same in both
-    metrics = {"centre": EpisodeMetrics(env.num_envs, h_des["centre"]),
-               "surface": EpisodeMetrics(env.num_envs, h_des["surface"])}  # fmt: skip
-    frame = {"centre": "platform", "surface": "translating"}
+    # one accumulator per height reading, both fed the same steps (h_des from the centre, from the
+    # surface); the positions, rotations and power are the same in both
+    metrics = {ref: EpisodeMetrics(env.num_envs, h) for ref, h in h_des.items()}
     cap = {}
 
     def capture(readout, collision):
         cap.update(readout=as_numpy(readout), collision=collision.numpy().copy())
 
     def start(ids, readout):
-        for ref, m in metrics.items():
-            p_rel, r_pb = relative_pose(readout, frame[ref])
-            m.start(ids, p_rel[ids], r_pb[ids])
+        for m in metrics.values():
+            m.start(ids, TrunkPose.from_readout(readout).rows(ids))
 
     env.on_step = capture
     env.reset()
     n = env.num_envs
     start(np.arange(n), as_numpy(env.readout))
-    keys = ("steps", "viol_centre", "viol_surface", "pos_platform", "pos_translating", "rot", "power")
+    keys = ("steps", "viol_centre", "viol_surface", "pos_platform", "pos_translating", "rot_world", "rot_platform",
+            "power")  # fmt: skip
     out = {k: np.full(episodes, np.nan) for k in (*keys, "collision")}
     zeros = torch.zeros(n, 12)
     done_count, t0 = 0, time.perf_counter()
@@ -134,9 +135,9 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
         ep = source.episode_of_env.copy()
         _, _, done, extras = env.step(zeros)
         r = cap["readout"]
-        for ref, m in metrics.items():
-            p_rel, r_pb = relative_pose(r, frame[ref])
-            m.step(ep >= 0, cap["collision"], r.p_body_p, r_pb, r.tau, r.q_dot, p_rel)
+        pose = TrunkPose.from_readout(r)
+        for m in metrics.values():
+            m.step(ep >= 0, cap["collision"], pose, r.tau, r.q_dot)
         done = done.numpy()
         ids = np.flatnonzero(done & (ep >= 0))
         if len(ids):
@@ -149,8 +150,10 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
                 s["height_violation_rate"],
             )
             out["pos_platform"][rows] = c["position_deviation_m"]
-            out["pos_translating"][rows] = s["position_deviation_m"]
-            out["rot"][rows], out["power"][rows] = c["rotation_deviation_rad"], c["power_w"]
+            out["pos_translating"][rows] = c["position_deviation_translating_m"]
+            out["rot_world"][rows] = c["rotation_deviation_rad"]
+            out["rot_platform"][rows] = c["rotation_deviation_platform_rad"]
+            out["power"][rows] = c["power_w"]
             done_count += len(ids)
         restarted = np.flatnonzero(done)
         if len(restarted):
@@ -167,10 +170,18 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
     return row
 
 
+def _rot(row: dict) -> str:
+    """'world / platform' rotation deviation of a row; rows from before the world reading hold only the
+    platform-relative angle, as `rot`."""
+    world = row.get("rot_world")
+    platform = row.get("rot_platform", row.get("rot"))
+    return f"{'n/a' if world is None else f'{world:.3f}'} / {platform:.3f}"
+
+
 def markdown_table(rows: list[dict]) -> str:
     """The candidate-world table of the README from rows of `play_world` (one JSON line each)."""
     head = ("| world | path m | speed m/s | collision | height viol. (top / centre) | "
-            "pos. dev. m (platform / translating) | rot. dev. rad | power W |")  # fmt: skip
+            "pos. dev. m (platform / translating) | rot. dev. rad (world tilt / platform) | power W |")  # fmt: skip
     lines = [head, "|" + "---|" * 8]
     p = PAPER
     lines.append(f"| paper, Stand Still | 7.12 | 0.69 | {p['collision'][0]} | {p['height_violation'][0]} | "
@@ -179,7 +190,7 @@ def markdown_table(rows: list[dict]) -> str:
         lines.append(
             f"| {r['world']} | {r['path_length_m']:.2f} | {r['speed_mps']:.2f} | {r['collision']:.3f} | "
             f"{r['viol_surface']:.3f} / {r['viol_centre']:.3f} | {r['pos_platform']:.3f} / {r['pos_translating']:.3f} | "
-            f"{r['rot']:.3f} | {r['power']:.2f} |"
+            f"{_rot(r)} | {r['power']:.2f} |"
         )
     return "\n".join(lines)
 

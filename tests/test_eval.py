@@ -15,7 +15,8 @@ from omegaconf import OmegaConf
 
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
-from lasmp.eval.metrics import EpisodeMetrics, rotation_angle, summarize
+from lasmp.eval import episodes as ep
+from lasmp.eval.metrics import ALL_METRICS, EpisodeMetrics, TrunkPose, rotation_angle, summarize
 from lasmp.eval.run import BenchmarkSource
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -27,8 +28,26 @@ def rot_z(a):
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def rot_x(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def pose(p_body_p, r_wb=None, r_wp=None, p_body_t=None) -> TrunkPose:
+    """A TrunkPose of n envs from per-env (3,) / (3, 3) lists (identity rotations by default;
+    the translating-frame position defaults to the platform-frame one)."""
+    p = np.atleast_2d(np.asarray(p_body_p, dtype=float))
+    n = len(p)
+    eye = np.tile(np.eye(3), (n, 1, 1))
+    r_wb = eye if r_wb is None else np.asarray(r_wb, dtype=float).reshape(n, 3, 3)
+    r_wp = eye if r_wp is None else np.asarray(r_wp, dtype=float).reshape(n, 3, 3)
+    p_t = p if p_body_t is None else np.atleast_2d(np.asarray(p_body_t, dtype=float))
+    return TrunkPose(p, p_t, r_wb, r_wp)
+
+
 def play(metrics, env, steps):
-    """Feed (p, R, tau, q_dot, collision) per step to env `env` of a 2-env accumulator."""
+    """Feed (p_body_p, R_pb, tau, q_dot, collision) per step to env `env` of a 2-env accumulator; the
+    platform stays level (R_wp = I), so R_wb = R_pb."""
     for p, r, tau, q_dot, col in steps:
         pp = np.zeros((2, 3))
         pp[:, 2] = H
@@ -41,12 +60,16 @@ def play(metrics, env, steps):
         qq[env] = q_dot
         cc = np.zeros(2, bool)
         cc[env] = col
-        metrics.step(np.array([True, True]), cc, pp, rr, tt, qq)
+        metrics.step(np.array([True, True]), cc, pose(pp, rr), tt, qq)
+
+
+def start_level(m, p=((0.0, 0.0, H), (0.0, 0.0, H))):
+    m.start(np.array([0, 1]), pose(p))
 
 
 def test_collision_at_step_k_counts_violations_and_deviations_up_to_k_only():
     m = EpisodeMetrics(2, H)
-    m.start(np.array([0, 1]), np.array([[0, 0, H]] * 2), np.tile(np.eye(3), (2, 1, 1)))
+    start_level(m)
     ok = ([0.0, 0.0, H], np.eye(3), np.zeros(12), np.zeros(12), False)
     low = (
         [0.3, 0.4, H - 0.2],
@@ -63,26 +86,29 @@ def test_collision_at_step_k_counts_violations_and_deviations_up_to_k_only():
     assert out["collision"][0] == 1.0
     assert out["height_violation_rate"][0] == pytest.approx(1 / 3)
     assert out["position_deviation_m"][0] == pytest.approx(math.sqrt(0.3**2 + 0.4**2 + 0.2**2) / 3)
-    assert out["rotation_deviation_rad"][0] == pytest.approx(0.5 / 3)
+    assert out["position_deviation_translating_m"][0] == pytest.approx(math.sqrt(0.3**2 + 0.4**2 + 0.2**2) / 3)
+    assert out["rotation_deviation_platform_rad"][0] == pytest.approx(0.5 / 3)
+    assert out["rotation_deviation_rad"][0] == pytest.approx(0.0)  # a turn about the vertical: no tilt
     assert out["power_w"][0] == pytest.approx(12 * 2.0 / 3)
 
 
 def test_episode_without_collision_counts_its_full_length():
     m = EpisodeMetrics(2, H)
-    m.start(np.array([0, 1]), np.array([[0, 0, H]] * 2), np.tile(np.eye(3), (2, 1, 1)))
-    step = ([0.1, 0.0, H + 0.15], rot_z(0.2), np.full(12, -1.0), np.full(12, 1.0), False)  # negative power
+    start_level(m)
+    step = ([0.1, 0.0, H + 0.15], rot_x(0.2), np.full(12, -1.0), np.full(12, 1.0), False)  # negative power
     play(m, 1, [step] * 500)
     out = m.close(np.array([1]), np.array([False]))
     assert out["steps"][0] == 500 and out["collision"][0] == 0.0
     assert out["height_violation_rate"][0] == 1.0
     assert out["position_deviation_m"][0] == pytest.approx(math.hypot(0.1, 0.15))
-    assert out["rotation_deviation_rad"][0] == pytest.approx(0.2)
+    assert out["rotation_deviation_rad"][0] == pytest.approx(0.2)  # a roll on a level platform: both readings
+    assert out["rotation_deviation_platform_rad"][0] == pytest.approx(0.2)
     assert out["power_w"][0] == 0.0  # only positive mechanical power counts
 
 
 def test_collision_on_the_first_step_counts_for_the_collision_rate_only():
     m = EpisodeMetrics(2, H)
-    m.start(np.array([0, 1]), np.zeros((2, 3)), np.tile(np.eye(3), (2, 1, 1)))
+    start_level(m, np.zeros((2, 3)))
     play(m, 0, [([0, 0, 0.0], np.eye(3), np.zeros(12), np.zeros(12), True)])
     out = m.close(np.array([0]), np.array([True]))
     assert out["steps"][0] == 0 and np.isnan(out["position_deviation_m"][0])
@@ -93,9 +119,13 @@ def test_collision_on_the_first_step_counts_for_the_collision_rate_only():
 
 def test_summary_std_is_over_batches():
     episodes = {k: np.array([0.0, 0.0, 1.0, 1.0]) for k in
-                ("collision", "height_violation_rate", "position_deviation_m", "rotation_deviation_rad", "power_w")}  # fmt: skip
+                ("collision", "height_violation_rate", "position_deviation_m", "rotation_deviation_rad", "power_w",
+                 "position_deviation_translating_m", "rotation_deviation_platform_rad")}  # fmt: skip
     s = summarize(episodes, num_batches=2)
     assert s["collision_rate"] == {"mean": 0.5, "std": 0.5}
+    assert set(s) == {"collision_rate", "height_violation_rate", "position_deviation_m", "rotation_deviation_rad",
+                      "power_w"}  # the paper's five by default  # fmt: skip
+    assert set(summarize(episodes, 2, ALL_METRICS)) == set(ALL_METRICS)
 
 
 def test_rotation_angle():
@@ -136,7 +166,89 @@ def test_evaluate_stand_still_end_to_end(tmp_path):
         assert set(result["metrics"][key]) == {"mean", "std"}
     assert 0.0 <= result["metrics"]["collision_rate"]["mean"] <= 1.0
     assert result["metrics"]["power_w"]["mean"] > 0.0  # the PD does work against the platform's motion
+    assert set(result["metrics"]) == set(ALL_METRICS) and result["h_des_p_m"] == pytest.approx(0.47)
     assert "| collision rate |" in (tmp_path / "ev" / "metrics.md").read_text()
+    rows = ep.read_csv(tmp_path / "ev" / "episodes.csv")  # one row per episode, in benchmark order
+    np.testing.assert_array_equal(rows["episode"], np.arange(16))
+    assert set(np.unique(rows["collided"])) <= {0.0, 1.0}
+    collided = rows["collided"] > 0
+    assert np.all(np.isfinite(rows["collision_time_s"][collided])) and np.all(rows["collision_time_s"][collided] <= 10)
+    assert all(c for c in rows["collision_cause"][collided]) and not any(rows["collision_cause"][~collided])
+    assert np.all(np.isfinite(rows["platform_tilt_max_rad"])) and set(np.unique(rows["forced"])) <= {0.0, 1.0}
+    assert result["forced_episodes"] == int(rows["forced"].sum())
+
+
+def strict_load(path):
+    """JSON that a strict reader accepts: NaN or Infinity fail the test."""
+    return json.loads(Path(path).read_text(), parse_constant=lambda c: pytest.fail(f"{path}: non-strict {c}"))
+
+
+def tiny_benchmark(tmp_path):
+    path = tmp_path / "bench.npz"
+    bm.save(path, bm.generate(num_trajectories=4, num_robots=2, seed=0))
+    return path
+
+
+STAND_STILL_2 = ("--controller", "stand_still", "--num-trajectories", "2", "--batch-envs", "2")
+
+
+def test_evaluate_refuses_an_earlier_result_before_playing_unless_forced(tmp_path):
+    bench = tiny_benchmark(tmp_path)
+    out_dir = tmp_path / "ev"
+    out_dir.mkdir()
+    (out_dir / "metrics.json").write_text('{"earlier": true}')
+    out = run_evaluate(*STAND_STILL_2, "--benchmark", str(bench), "--out", str(out_dir), cwd=tmp_path)
+    assert out.returncode == 2 and f"{out_dir / 'metrics.json'} already exists" in out.stderr
+    assert "--force" in out.stderr and "episodes" not in out.stderr  # refused before any episode
+    assert json.loads((out_dir / "metrics.json").read_text()) == {"earlier": True}
+    out = run_evaluate(*STAND_STILL_2, "--benchmark", str(bench), "--out", str(out_dir), "--force",
+                       "--no-platform-probe", cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    result = strict_load(out_dir / "metrics.json")  # strict JSON: null, never NaN
+    assert result["num_episodes"] == 2 and result["forced_episodes"] is None
+    assert np.isnan(ep.read_csv(out_dir / "episodes.csv")["forced"]).all()  # no probe: empty cells
+
+
+def test_evaluate_fails_at_once_on_an_unwritable_output_directory(tmp_path):
+    bench = tiny_benchmark(tmp_path)
+    (tmp_path / "a_file").write_text("")
+    out = run_evaluate(*STAND_STILL_2, "--benchmark", str(bench), "--out", str(tmp_path / "a_file" / "ev"),
+                       cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 2 and "cannot write results to" in out.stderr and "a_file" in out.stderr
+    assert "Traceback" not in out.stderr and "episodes" not in out.stderr
+
+
+def test_the_default_output_directory_differs_for_the_same_checkpoint_name_of_two_runs(tmp_path):
+    from types import SimpleNamespace
+
+    from lasmp.eval.cli import default_out_dir
+
+    def out_dir(checkpoint, controller=None):
+        return default_out_dir(SimpleNamespace(checkpoint=checkpoint, controller=controller), Path("eval"))
+
+    a = out_dir(str(tmp_path / "runs" / "seed0" / "model_449.pt"))
+    b = out_dir(str(tmp_path / "runs" / "seed1" / "model_449.pt"))
+    assert a == Path("eval/seed0/model_449") and b == Path("eval/seed1/model_449")
+    assert out_dir(None, "stand_still") == Path("eval/stand_still")
+    assert out_dir(str(tmp_path / "rs_run" / "model_9.pt"), "rs_oracle") == Path("eval/rs_run/model_9_rs_oracle")
+    run = tmp_path / "runs" / "seed2"
+    run.mkdir(parents=True)
+    for k in (9, 10):
+        (run / f"model_{k}.pt").write_text("")
+    assert out_dir(str(run)) == Path("eval/seed2/model_10")  # a run directory: its latest checkpoint
+
+
+def test_metrics_json_writes_missing_values_as_null(tmp_path):
+    from lasmp.eval.report import write_results
+
+    result = {"method": "m", "num_episodes": 1, "std_over": "1 batch", "wall_time_s": 1.0,
+              "metrics": {"collision_rate": {"mean": 1.0, "std": 0.0},
+                          "power_w": {"mean": float("nan"), "std": np.float64("nan")}},
+              "extra": [np.inf, np.int64(3)]}  # fmt: skip
+    write_results(tmp_path, result)
+    back = strict_load(tmp_path / "metrics.json")
+    assert back["metrics"]["power_w"] == {"mean": None, "std": None} and back["extra"] == [None, 3]
+    assert "| power (W) | n/a | n/a |" in (tmp_path / "metrics.md").read_text()
 
 
 def test_evaluate_refuses_a_malformed_trajectory_file(tmp_path):
@@ -218,34 +330,87 @@ def test_evaluate_lasmp_checkpoint_reports_estimator_accuracy_and_plots(tmp_path
     assert 0 <= result["estimates_plot_episode"] < 3  # an episode of the first wave (3 envs)
 
 
-def test_position_deviation_uses_the_frame_of_p_rel_and_height_the_platform_frame():
-    """With p_rel given (e.g. the translating frame), the deviation follows it; the height stays in P."""
+def test_position_deviation_reads_both_frames_and_height_the_platform_frame():
+    """The platform-frame and translating-frame deviations follow their own positions; the height stays in P."""
     m = EpisodeMetrics(2, H)
-    m.start(np.array([0, 1]), np.zeros((2, 3)), np.tile(np.eye(3), (2, 1, 1)))
+    m.start(np.array([0, 1]), pose([[0.0, 0.0, H]] * 2, p_body_t=np.zeros((2, 3))))
     p_body_p = np.array([[0.0, 0.0, H], [0.0, 0.0, H - 0.3]])  # env 1 is 0.3 m low in P
-    p_rel = np.array([[0.3, 0.4, 0.0], [0.0, 0.0, 0.0]])  # env 0 moved 0.5 m in the other frame
+    p_body_t = np.array([[0.3, 0.4, 0.0], [0.0, 0.0, 0.0]])  # env 0 moved 0.5 m in the translating frame only
     z = np.zeros((2, 12))
-    m.step(np.array([True, True]), np.zeros(2, bool), p_body_p, np.tile(np.eye(3), (2, 1, 1)), z, z, p_rel)
+    m.step(np.array([True, True]), np.zeros(2, bool), pose(p_body_p, p_body_t=p_body_t), z, z)
     out = m.close(np.array([0, 1]), np.array([False, False]))
-    np.testing.assert_allclose(out["position_deviation_m"], [0.5, 0.0])
+    np.testing.assert_allclose(out["position_deviation_translating_m"], [0.5, 0.0])
+    np.testing.assert_allclose(out["position_deviation_m"], [0.0, 0.3])
     np.testing.assert_allclose(out["height_violation_rate"], [0.0, 1.0])
 
 
-def test_relative_pose_frames():
+def test_trunk_pose_reads_the_platform_and_translating_frames_of_a_readout():
     from types import SimpleNamespace
-
-    from lasmp.eval.run import relative_pose
 
     rot = rot_z(0.7)[None]
     r = SimpleNamespace(p_body_p=np.array([[0.2, 0.0, 0.47]]), p_body_w=np.array([[1.0, 2.0, 3.5]]),
                         p_plf_w=np.array([[1.0, 1.8, 3.0]]), r_wp=rot, r_wb=rot)  # fmt: skip
-    p, r_pb = relative_pose(r, "platform")
-    np.testing.assert_allclose(p, r.p_body_p)
-    np.testing.assert_allclose(r_pb[0], np.eye(3), atol=1e-12)  # trunk aligned with the platform
-    p, _ = relative_pose(r, "translating")
-    np.testing.assert_allclose(p, [[0.0, 0.2, 0.5]])
-    with pytest.raises(ValueError, match="unknown position frame 'world'"):
-        relative_pose(r, "world")
+    p = TrunkPose.from_readout(r)
+    np.testing.assert_allclose(p.p_body_p, r.p_body_p)
+    np.testing.assert_allclose(p.r_pb[0], np.eye(3), atol=1e-12)  # trunk aligned with the platform
+    np.testing.assert_allclose(p.p_body_t, [[0.0, 0.2, 0.5]])
+
+
+def tilts(r_wb, r_wp, r_wb0=None):
+    """(world tilt, platform-relative angle) of one step after a start on a level platform (the trunk
+    level, or at r_wb0)."""
+    m = EpisodeMetrics(1, H)
+    m.start(np.array([0]), pose([[0, 0, H]], r_wb=np.eye(3) if r_wb0 is None else r_wb0))
+    m.step(np.array([True]), np.array([False]), pose([[0, 0, H]], r_wb=r_wb, r_wp=r_wp), np.zeros((1, 12)),
+           np.zeros((1, 12)))  # fmt: skip
+    out = m.close(np.array([0]), np.array([False]))
+    return out["rotation_deviation_rad"][0], out["rotation_deviation_platform_rad"][0]
+
+
+def test_a_trunk_that_stays_level_while_the_platform_tilts_has_no_world_tilt_but_turns_relative_to_it():
+    world, platform = tilts(r_wb=np.eye(3), r_wp=rot_x(0.3))
+    assert world == pytest.approx(0.0, abs=1e-12) and platform == pytest.approx(0.3)
+
+
+def test_a_trunk_rigid_on_a_tilting_platform_tilts_in_the_world_but_not_relative_to_the_platform():
+    world, platform = tilts(r_wb=rot_x(0.3), r_wp=rot_x(0.3))
+    assert world == pytest.approx(0.3) and platform == pytest.approx(0.0, abs=1e-7)
+
+
+def test_a_trunk_that_tilts_on_a_level_platform_tilts_in_both_readings():
+    world, platform = tilts(r_wb=rot_x(0.3), r_wp=np.eye(3))
+    assert world == pytest.approx(0.3) and platform == pytest.approx(0.3)
+
+
+def test_yaw_alone_gives_no_world_tilt_even_from_a_tilted_start():
+    assert tilts(r_wb=rot_z(1.2), r_wp=np.eye(3))[0] == pytest.approx(0.0, abs=1e-12)
+    tilted = rot_x(0.2)
+    world, _ = tilts(r_wb=rot_z(2.5) @ tilted, r_wp=np.eye(3), r_wb0=tilted)  # turned about the world vertical
+    assert world == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("h_des_from", ["top", "centre"])
+def test_the_height_band_is_centred_037_m_above_the_top_whatever_the_reward_reads(h_des_from, monkeypatch):
+    from lasmp.envs.moving_platform.env import MovingPlatformEnv
+    from lasmp.eval.cli import eval_env_overrides
+    from lasmp.eval.metrics import metric_h_des_p_m
+    from lasmp.eval.run import run_benchmark
+
+    env = MovingPlatformEnv({**eval_env_overrides(2, 0), "rewards": {"h_des_from": h_des_from},
+                             "trajectory": {"split": "test", "duration_s": 0.1}})  # fmt: skip
+    assert metric_h_des_p_m(env.plf_top_m) == pytest.approx(env.plf_top_m + 0.37) == pytest.approx(0.47)
+    bench = bm.generate(num_trajectories=2, num_robots=2, seed=0)
+    seen = {}
+
+    class Spy(EpisodeMetrics):
+        def __init__(self, n, h_des_p_m, *a):
+            seen["h_des_p_m"] = h_des_p_m
+            super().__init__(n, h_des_p_m, *a)
+
+    monkeypatch.setattr("lasmp.eval.run.EpisodeMetrics", Spy)
+    run_benchmark(env, lambda obs: torch.zeros(2, 12), bench, 2, progress=False)
+    assert seen["h_des_p_m"] == pytest.approx(0.47)  # not the reward's 0.27 under h_des_from=centre
+    assert env.h_des_p_m == pytest.approx(0.47 if h_des_from == "top" else 0.37)
 
 
 def test_shrinking_the_tail_steps_only_playing_envs_and_changes_no_episode():
@@ -267,37 +432,6 @@ def test_shrinking_the_tail_steps_only_playing_envs_and_changes_no_episode():
         np.testing.assert_array_equal(results[True]["episodes"][key], value, err_msg=key)
     # 10 episodes on 4 envs: the third wave has 2 episodes, so the tail steps fewer envs
     assert stepped[True] < stepped[False]
-
-
-def test_results_table_rows_and_refusals(tmp_path, capsys):
-    from lasmp.eval import results_table as rt
-    from lasmp.eval.metrics import METRICS
-
-    def write(name, collision, estimator=None, episodes=100):
-        d = tmp_path / name
-        d.mkdir()
-        metrics = {k: {"mean": 0.5, "std": 0.01} for k in METRICS}
-        metrics["collision_rate"] = {"mean": collision, "std": 0.02}
-        result = {"method": name, "benchmark": "b.npz", "num_episodes": episodes, "metrics": metrics}
-        if estimator:
-            result["estimator"] = estimator
-        (d / "metrics.json").write_text(json.dumps(result))
-        return d
-
-    est = {"x_exp_mean_abs_error": {"contact_FR": 0.1, "v_body_x": 0.2}, "l_imp_mean_l2_error": 0.3}
-    dirs = [write("ss", 0.65), write("lasmp", 0.25, est), write("noexp", 0.3, {"x_exp_mean_abs_error": {},
-                                                                             "l_imp_mean_l2_error": 0.4})]  # fmt: skip
-    rt.main([str(d) for d in dirs] + ["--labels", "Stand Still", "LAS-MP", "no explicit"])
-    out = capsys.readouterr().out
-    assert "| Stand Still | 0.650 ± 0.020 |" in out and "| LAS-MP | 0.250 ± 0.020 |" in out
-    assert "| LAS-MP | 0.100 | 0.200 | 0.300 |" in out  # the estimator table: only methods that estimate
-    assert "| no explicit |  |  | 0.400 |" in out and "| Stand Still | 0.650" in out.split("Estimator")[0]
-    with pytest.raises(ValueError, match="different benchmarks or episode counts"):
-        rt.load_results([dirs[0], write("short", 0.5, episodes=10)])
-    with pytest.raises(FileNotFoundError, match="run `python evaluate.py"):
-        rt.load_results([tmp_path / "missing"])
-    with pytest.raises(ValueError, match="2 labels for 1 results"):
-        rt.load_results([dirs[0]], ["a", "b"])
 
 
 def test_evaluate_refuses_a_thread_count_below_one(capsys):

@@ -7,26 +7,38 @@
     python evaluate.py --suite real_motion --controller stand_still   # ship, bus, train, lift, aircraft
     options: --benchmark FILE (default benchmarks/xi_eval.npz, made on first use)
              --trajectories FILE (any trajectory file; robots still come from the benchmark)
-             --num-trajectories K (the first K episodes) --out DIR --batch-envs 1024 --seed 0
-             --torch-threads 1 (the policy's CPU threads)
+             --num-trajectories K (the first K episodes) --out DIR --force --batch-envs 1024 --seed 0
+             --torch-threads 1 (the policy's CPU threads) --no-platform-probe
     suite options: --robots-per-scenario R (default 64) --platform-drive close|paper --scenarios NAME ...
 
-Writes DIR/metrics.json and DIR/metrics.md (definitions: lasmp/eval/metrics.py and README).
+Writes DIR/metrics.json (strict JSON: a missing value is null), DIR/metrics.md and DIR/episodes.csv
+(one row per episode: lasmp/eval/episodes.py; `python -m lasmp.eval.breakdown DIR` reads it).
+Definitions: lasmp/eval/metrics.py and docs/evaluation.md.
+
+The default DIR is eval/<controller> for Stand Still, else eval/<run directory>/<checkpoint stem>
+(plus _rs or _rs_oracle), so checkpoints of two runs never share one. A DIR that already holds a
+metrics.json is refused unless --force; an unwritable DIR fails before any episode is played.
+The platform probe (for episodes.csv's feasibility columns) replays every episode's platform
+motion in full, a second pass about as long as a Stand Still evaluation; --no-platform-probe
+leaves those columns empty.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 import torch
 
-from lasmp.algo.checkpoint import CheckpointError
+from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
-from lasmp.eval.metrics import summarize
+from lasmp.eval import episodes as ep
+from lasmp.eval.metrics import ALL_METRICS, metric_h_des_p_m, summarize
 from lasmp.eval.report import plot_estimates, write_results
 from lasmp.eval.run import run_benchmark
 
@@ -138,7 +150,11 @@ def main(argv=None) -> int:
     p.add_argument("--trajectories", type=Path, help="a trajectory file to play instead of the benchmark's")
     p.add_argument("--num-trajectories", type=int, default=None, help="the first K episodes (default: all)")
     p.add_argument("--batch-envs", type=int, default=1024)
-    p.add_argument("--out", type=Path, default=None, help="default: eval/<method>")
+    p.add_argument("--out", type=Path, default=None,
+                   help="default: eval/stand_still, or eval/<run directory>/<checkpoint stem>[_rs|_rs_oracle]")  # fmt: skip
+    p.add_argument("--force", action="store_true", help="overwrite a result already in --out")
+    p.add_argument("--no-platform-probe", action="store_true",
+                   help="skip the platform probe: episodes.csv's feasibility columns stay empty")  # fmt: skip
     p.add_argument(
         "--plot-estimates", action="store_true", help="estimated vs true x_exp over episode 0 (PNG)"
     )
@@ -169,6 +185,8 @@ def main(argv=None) -> int:
                         ("--platform-drive", args.platform_drive)):  # fmt: skip
         if value is not None:
             p.error(f"{flag} needs --suite")
+    if args.plot_estimates and args.controller is not None:
+        p.error("--plot-estimates needs --checkpoint (a policy with estimators)")
     try:
         bench = load_or_make_benchmark(args.benchmark)
         if args.trajectories is not None:
@@ -177,24 +195,29 @@ def main(argv=None) -> int:
         args.num_trajectories = total if args.num_trajectories is None else args.num_trajectories
         if not 1 <= args.num_trajectories <= total:
             p.error(f"--num-trajectories must be in [1, {total}], got {args.num_trajectories}")
+        # the output before the policy and the physics: a refusal costs seconds, not an evaluation
+        out_dir = prepare_out_dir(args.out or default_out_dir(args), args.force)
         env, controller, policy, method = build(args)
-    except (CheckpointError, bm.BenchmarkFileError, trj.TrajectoryFileError) as err:
+    except (CheckpointError, OutDirError, bm.BenchmarkFileError, trj.TrajectoryFileError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    out_dir = args.out or Path("eval") / method_dir(args)
-    if args.plot_estimates and policy is None:
-        p.error("--plot-estimates needs --checkpoint (a policy with estimators)")
     run = run_benchmark(
         env, controller, bench, args.num_trajectories, policy=policy, trace=args.plot_estimates
     )
     episodes = run["episodes"]
+    probe = None
+    if not args.no_platform_probe:
+        probe = ep.probe_platform(env.cfg, bench, args.num_trajectories, env.num_envs)
+    ep.write_csv(out_dir / "episodes.csv", ep.episode_table(bench, episodes, probe))
     result = {
         "method": method,
         "benchmark": str(args.trajectories or args.benchmark),
         "num_episodes": args.num_trajectories,
         "std_over": f"{min(NUM_BATCHES, args.num_trajectories)} consecutive equal batches of episodes",
-        "metrics": summarize(episodes, NUM_BATCHES),
+        "metrics": summarize(episodes, NUM_BATCHES, ALL_METRICS),
+        "h_des_p_m": metric_h_des_p_m(env.plf_top_m),
         "mean_episode_steps": float(episodes["steps"].mean()),
+        "forced_episodes": None if probe is None else int(ep.count_forced(probe)),
         "wall_time_s": run["wall_time_s"],
     }
     if "estimator" in run:
@@ -208,8 +231,39 @@ def main(argv=None) -> int:
     return 0
 
 
-def method_dir(args) -> str:
-    return args.controller or Path(str(args.checkpoint)).name
+class OutDirError(ValueError):
+    """--out cannot take a result: it already holds one, or it cannot be written."""
+
+
+def default_out_dir(args, root: Path = Path("eval")) -> Path:
+    """eval/stand_still; else eval/<run directory>/<checkpoint stem>[_<controller>], from the checkpoint
+    file (a run directory's latest model_<N>.pt), so `model_449.pt` of two runs land apart."""
+    if args.checkpoint is None:
+        return root / args.controller
+    path = Path(args.checkpoint)
+    if path.is_dir():
+        path = latest_checkpoint(path)
+    path = path.resolve()
+    suffix = f"_{args.controller}" if args.controller else ""
+    return root / path.parent.name / f"{path.stem}{suffix}"
+
+
+def prepare_out_dir(out_dir: Path, force: bool) -> Path:
+    """Create `out_dir` and prove it writable (a temporary file), before any episode is played;
+    refuse one that already holds a metrics.json unless `force`."""
+    existing = out_dir / "metrics.json"
+    if existing.exists() and not force:
+        raise OutDirError(f"{existing} already exists (an earlier result): choose another --out, or pass --force "
+                          "to overwrite it")  # fmt: skip
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out_dir, prefix=".write-test-"):
+            pass
+    except OSError as err:
+        raise OutDirError(f"cannot write results to {out_dir}: {err.strerror or err}") from None
+    if not os.access(out_dir, os.W_OK):
+        raise OutDirError(f"cannot write results to {out_dir}: not writable")
+    return out_dir
 
 
 def run_suite(args, p) -> int:
@@ -217,7 +271,8 @@ def run_suite(args, p) -> int:
     from lasmp.eval.real_motion import suite as rm
 
     for flag, value in (("--trajectories", args.trajectories), ("--num-trajectories", args.num_trajectories),
-                        ("--plot-estimates", args.plot_estimates or None)):  # fmt: skip
+                        ("--plot-estimates", args.plot_estimates or None),
+                        ("--no-platform-probe", args.no_platform_probe or None)):  # fmt: skip
         if value is not None:
             p.error(f"{flag} does not apply to --suite")
     drive = args.platform_drive or rm.DEFAULT_DRIVE
@@ -230,11 +285,11 @@ def run_suite(args, p) -> int:
         duration_s = max(m.duration_s for m in motions)
         extra = rm.env_overrides(duration_s, drive)
         args.num_trajectories = episodes.num_episodes
+        out_dir = prepare_out_dir(args.out or default_out_dir(args, Path("eval") / rm.SUITE_NAME), args.force)
         env, controller, policy, method = build(args, extra)
     except (CheckpointError, bm.BenchmarkFileError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    out_dir = args.out or Path("eval") / rm.SUITE_NAME / method_dir(args)
     tracking = rm.platform_tracking(episodes, eval_env_overrides(len(names), args.seed, extra))
     run = run_benchmark(env, controller, episodes, episodes.num_episodes, policy=policy)
     per_episode = run["episodes"]

@@ -1,4 +1,8 @@
-"""Evaluation outputs: `metrics.json`, `metrics.md` and the estimate plot, written atomically."""
+"""Evaluation outputs: `metrics.json`, `metrics.md` and the estimate plot, written atomically.
+
+`metrics.json` is strict JSON (a value that is not a finite number is written as null, never NaN),
+so every JSON reader, not only Python's, can read it.
+"""
 
 from __future__ import annotations
 
@@ -8,15 +12,40 @@ from pathlib import Path
 import numpy as np
 
 from lasmp.atomic import atomic_open, atomic_write_with
-from lasmp.eval.metrics import METRICS
+from lasmp.eval.metrics import ALL_METRICS
 
 LABELS = {
     "collision_rate": "collision rate",
     "height_violation_rate": "height-violation rate",
     "position_deviation_m": "position deviation (m)",
-    "rotation_deviation_rad": "rotation deviation (rad)",
+    "rotation_deviation_rad": "rotation deviation (rad, world tilt)",
     "power_w": "power (W)",
+    "position_deviation_translating_m": "position deviation, translating frame (m)",
+    "rotation_deviation_platform_rad": "rotation deviation, relative to the platform (rad)",
 }
+
+
+def strict_json(value):
+    """`value` with NaN and infinities as None and numpy scalars and arrays as plain Python."""
+    if isinstance(value, dict):
+        return {str(k): strict_json(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [strict_json(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return strict_json(value.tolist())
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def dumps(result: dict) -> str:
+    return json.dumps(strict_json(result), indent=2, allow_nan=False) + "\n"
+
+
+def _num(value, fmt: str = ".4f") -> str:
+    return "n/a" if value is None or not np.isfinite(value) else format(value, fmt)
 
 
 def atomic_write_text(path: Path, text: str) -> None:
@@ -33,9 +62,13 @@ def markdown(result: dict) -> str:
         "| metric | mean | std |",
         "|---|---|---|",
     ]
-    for key in METRICS:
-        m = result["metrics"][key]
-        lines.append(f"| {LABELS[key]} | {m['mean']:.4f} | {m['std']:.4f} |")
+    for key in ALL_METRICS:
+        m = result["metrics"].get(key)
+        if m is not None:
+            lines.append(f"| {LABELS[key]} | {_num(m['mean'])} | {_num(m['std'])} |")
+    if result.get("forced_episodes") is not None:
+        lines += ["", f"Forced episodes (the platform probe's Coulomb block slides off or loses contact): "
+                      f"{result['forced_episodes']} of {result['num_episodes']}."]  # fmt: skip
     est = result.get("estimator")
     if est:
         lines += [
@@ -53,7 +86,7 @@ def markdown(result: dict) -> str:
 
 def write_results(out_dir: Path, result: dict, render=markdown) -> None:
     """`metrics.json` and `metrics.md` (from `render(result)`), each written atomically."""
-    atomic_write_text(out_dir / "metrics.json", json.dumps(result, indent=2) + "\n")
+    atomic_write_text(out_dir / "metrics.json", dumps(result))
     atomic_write_text(out_dir / "metrics.md", render(result))
 
 

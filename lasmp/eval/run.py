@@ -4,6 +4,11 @@ Each env plays benchmark episodes one after another: when its episode ends (coll
 time-out), it resets into the next unplayed episode k (trajectory k, robot k mod R) until all K
 episodes are done; envs left without an episode keep running but are no longer counted. The
 pairing of trajectories and robots is therefore the same for every controller.
+
+Besides the metrics, each episode's end is recorded: when it collided (s after its start) and
+what ended it (`collision_cause`): the robot bodies that touched something (trunk, <leg>_hip,
+<leg>_thigh, <leg>_calf, joined by '+'), then `off_footprint` / `below_top` for a fall, or `fault`
+for a simulation the env found diverged.
 """
 
 from __future__ import annotations
@@ -16,8 +21,9 @@ import numpy as np
 import torch
 
 from lasmp.envs.moving_platform.domain_rand import Intrinsics
-from lasmp.envs.robot import as_numpy
-from lasmp.eval.metrics import POSITION_FRAME, POSITION_FRAMES, EpisodeMetrics
+from lasmp.envs.robot import as_numpy, take_columns
+from lasmp.eval.metrics import EpisodeMetrics, TrunkPose, metric_h_des_p_m
+from lasmp.robots import a1
 
 Controller = Callable[[object], torch.Tensor]  # observations (TensorDict) -> actions (n, 12)
 
@@ -53,40 +59,62 @@ class BenchmarkSource:
         return traj, traj.n_waypoints, intrinsics_rows(self.bench.robots, robot_rows)
 
 
-def relative_pose(readout, frame: str = POSITION_FRAME) -> tuple[np.ndarray, np.ndarray]:
-    """(trunk position relative to the platform in `frame` (n, 3), R_pb (n, 3, 3)) of a readout."""
-    if frame not in POSITION_FRAMES:
-        raise ValueError(f"unknown position frame {frame!r}; valid: {list(POSITION_FRAMES)}")
-    p = readout.p_body_p if frame == "platform" else readout.p_body_w - readout.p_plf_w
-    return p, np.einsum("nji,njk->nik", readout.r_wp, readout.r_wb)
+FALL_CAUSES = ("off_footprint", "below_top")
+FAULT_CAUSE = "fault"
+EPISODE_KEYS = ("collision", "steps", "height_violation_rate", "position_deviation_m",
+                "position_deviation_translating_m", "rotation_deviation_rad", "rotation_deviation_platform_rad",
+                "power_w", "collision_time_s")  # fmt: skip
+
+
+def fall_kinds(env, p_body_p: np.ndarray) -> np.ndarray:
+    """(n, 2) bool [off the footprint, below the top] of trunk positions in P (host arrays).
+
+    The env's own fall test (`MovingPlatformEnv._fell`) returns only their union; this repeats its
+    two comparisons, read-only, to name the cause."""
+    tc = env.cfg.termination
+    half_xy = env.plf_half_xy_m.cpu().numpy()
+    off = (np.abs(p_body_p[:, :2]) > half_xy + tc.footprint_margin_m).any(axis=1)
+    below = p_body_p[:, 2] < env.plf_top_m + tc.fall_below_top_m
+    return np.stack([off, below], axis=1)
+
+
+def cause_names(contact: np.ndarray, fell: np.ndarray) -> np.ndarray:
+    """(n,) str: the bodies of a1.NON_FOOT_COLLISION_GEOMS in contact (n, 13), then the fall kinds
+    (n, 2), joined by '+'; `fault` where none (the env ended the episode on a diverged simulation)."""
+    names = np.array([*a1.NON_FOOT_COLLISION_GEOMS, *FALL_CAUSES])
+    flags = np.concatenate([contact, fell], axis=1)
+    return np.array(["+".join(names[row]) or FAULT_CAUSE for row in flags], dtype=object)
 
 
 def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=None, trace: bool = False,
                   progress: bool = True, shrink_tail: bool = True) -> dict:  # fmt: skip
-    """Play `num_episodes` benchmark episodes; per-episode metrics (arrays in benchmark order),
-    estimator errors (if `policy` is given) and, with `trace`, the estimated and true x_exp over the
-    longest episode of the first wave (episodes 0..num_envs-1, one per env).
+    """Play `num_episodes` benchmark episodes; per-episode metrics and ends (arrays in benchmark
+    order, `EPISODE_KEYS` and `collision_cause`), estimator errors (if `policy` is given) and, with
+    `trace`, the estimated and true x_exp over the longest episode of the first wave (episodes
+    0..num_envs-1, one per env).
+
+    The height band is centred 0.37 m above the platform's top (`metric_h_des_p_m`), not at the
+    height the policy was rewarded for (`env.h_des_p_m`): one band for every method.
 
     `shrink_tail`: once every episode has started, only the envs still playing one are simulated
     (`env.stepped_envs`); the idle ones stop costing physics. Each episode's numbers are the same
     either way (the simulations are independent)."""
     source = BenchmarkSource(bench, num_episodes, env.num_envs)
     env.episode_source = source
-    metrics = EpisodeMetrics(env.num_envs, env.h_des_p_m)
+    metrics = EpisodeMetrics(env.num_envs, metric_h_des_p_m(env.plf_top_m))
     captured: dict = {}
 
     def capture(readout, collision):
-        readout = as_numpy(readout)  # the metrics run on the host
-        p_rel, r_pb = relative_pose(readout)
-        captured.update(p=readout.p_body_p, p_rel=p_rel, r=r_pb, tau=readout.tau, q_dot=readout.q_dot,
-                        collision=collision.cpu().numpy())  # fmt: skip
+        r = as_numpy(readout)  # the metrics run on the host
+        contact = take_columns(env.sim.sensordata, env.index.collision_cols).cpu().numpy() > 0
+        captured.update(pose=TrunkPose.from_readout(r), tau=r.tau, q_dot=r.q_dot,
+                        collision=collision.cpu().numpy(), contact=contact, fell=fall_kinds(env, r.p_body_p))  # fmt: skip
 
     env.on_step = capture
     obs, _ = env.reset()
-    metrics.start(np.arange(env.num_envs), *relative_pose(as_numpy(env.readout)))
-    episodes = {key: np.full(num_episodes, np.nan) for key in ("collision", "steps", "height_violation_rate",
-                                                               "position_deviation_m", "rotation_deviation_rad",
-                                                               "power_w")}  # fmt: skip
+    metrics.start(np.arange(env.num_envs), TrunkPose.from_readout(as_numpy(env.readout)))
+    episodes = {key: np.full(num_episodes, np.nan) for key in EPISODE_KEYS}
+    episodes["collision_cause"] = np.full(num_episodes, "", dtype=object)
     est = {"abs_sum": None, "l2_sum": 0.0, "count": 0}
     first_wave: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (episode per env, true, estimate)
     done_count, start, last_print = 0, time.perf_counter(), 0.0
@@ -101,19 +129,23 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
                 if trace and ((ep_before >= 0) & (ep_before < env.num_envs)).any():
                     first_wave.append((ep_before, x_true.numpy().copy(), x_hat.numpy().copy()))
             obs, _, done, extras = env.step(controller(obs))
-            metrics.step(active, captured["collision"], captured["p"], captured["r"], captured["tau"],
-                         captured["q_dot"], captured["p_rel"])  # fmt: skip
+            metrics.step(active, captured["collision"], captured["pose"], captured["tau"], captured["q_dot"])
             done = done.cpu().numpy()
             ids = np.flatnonzero(done & active)
             if len(ids):
                 collided = ~extras["time_outs"].cpu().numpy()[ids]
-                for key, value in metrics.close(ids, collided).items():
-                    episodes[key][ep_before[ids]] = value
+                rows = ep_before[ids]
+                closed = metrics.close(ids, collided)
+                for key, value in closed.items():
+                    episodes[key][rows] = value
+                # the collision step is the first one not counted: it ends at (steps + 1) dt
+                episodes["collision_time_s"][rows] = np.where(collided, (closed["steps"] + 1) * env.dt_s, np.nan)
+                causes = cause_names(captured["contact"][ids], captured["fell"][ids])
+                episodes["collision_cause"][rows] = np.where(collided, causes, "")
                 done_count += len(ids)
             restarted = np.flatnonzero(done)
             if len(restarted):
-                p, r = relative_pose(as_numpy(env.readout))
-                metrics.start(restarted, p[restarted], r[restarted])
+                metrics.start(restarted, TrunkPose.from_readout(as_numpy(env.readout)).rows(restarted))
             now = time.perf_counter()
             if progress and (now - last_print > 2.0 or done_count == num_episodes):
                 last_print = now

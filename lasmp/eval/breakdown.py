@@ -1,0 +1,162 @@
+"""Where a method fails: the collision rate of an evaluation broken down by episode, from episodes.csv.
+
+    python -m lasmp.eval.breakdown DIR [--plot out.png] [--late-s 8]
+
+Reads DIR/episodes.csv (written by evaluate.py) and prints, as Markdown tables, the collision rate
+(with the episode count behind it) by number of waypoints N, by the platform's maximum tilt (bins of
+0.1 rad, the last open), by foot friction (bins of 0.1), forced vs not forced (the platform probe's
+Coulomb block, lasmp.eval.episodes), the failures by cause (the first body that touched, or the fall),
+and the share of failures that come after --late-s seconds (8 by default: the platform is often
+still converging to its last waypoint when the episode ends). `--plot` draws the first three
+breakdowns and the failure times (matplotlib; without it the plot is skipped
+with a note). The tilt and forced tables need the probe's columns; without them they say so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from lasmp.eval.episodes import EpisodesFileError, read_csv
+
+TILT_BINS_RAD = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)  # the last bin is [0.7, inf)
+FRICTION_BINS = (0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3)  # the testing range, U(0.7, 1.3)
+TAIL_TILT_RAD = 0.5
+
+
+def rate_by(values: np.ndarray, collided: np.ndarray, groups) -> list[tuple[str, int, int]]:
+    """(label, episodes, collisions) per group; `groups` is [(label, mask)]."""
+    return [(label, int(mask.sum()), int(collided[mask].sum())) for label, mask in groups]
+
+
+def bins(values: np.ndarray, edges, fmt: str) -> list[tuple[str, np.ndarray]]:
+    """[(label, mask)] for bins [e_i, e_{i+1}), the last one open-ended; NaN falls in none."""
+    out = []
+    for i, lo in enumerate(edges):
+        hi = edges[i + 1] if i + 1 < len(edges) else np.inf
+        label = f"[{lo:{fmt}}, {hi:{fmt}})" if np.isfinite(hi) else f">= {lo:{fmt}}"
+        out.append((label, (values >= lo) & (values < hi)))
+    return out
+
+
+def primary_cause(cause: str) -> str:
+    """The kind of the first thing that touched: trunk, hip, thigh, calf, or the fall / fault."""
+    first = cause.split("+")[0]
+    return first.split("_", 1)[1] if first.count("_") == 1 and first[:2] in ("FR", "FL", "RR", "RL") else first
+
+
+def breakdown(t: dict[str, np.ndarray], late_s: float = 8.0) -> dict:
+    """The breakdown tables (name -> rows) and the headline figures of one episodes table."""
+    collided = t["collided"] > 0.5
+    n_values = np.unique(t["n_waypoints"][np.isfinite(t["n_waypoints"])]).astype(int)
+    out: dict = {
+        "episodes": len(collided),
+        "collisions": int(collided.sum()),
+        "by_n": rate_by(t["n_waypoints"], collided, [(str(n), t["n_waypoints"] == n) for n in n_values]),
+        "by_friction": rate_by(t["foot_friction"], collided, bins(t["foot_friction"], FRICTION_BINS, ".1f")),
+    }
+    probed = np.isfinite(t["forced"])
+    out["probed"] = int(probed.sum())
+    if probed.any():
+        tilt = t["platform_tilt_max_rad"]
+        out["by_tilt"] = rate_by(tilt, collided, bins(tilt, TILT_BINS_RAD, ".1f"))
+        forced = probed & (t["forced"] > 0.5)
+        out["by_forced"] = rate_by(None, collided, [("forced", forced), ("not forced", probed & ~forced)])
+        out["forced"] = int(forced.sum())
+        tail = tilt >= TAIL_TILT_RAD
+        out["tilt_tail"] = {"episodes": int(tail.sum()), "collisions": int((collided & tail).sum())}
+    causes = [primary_cause(c) for c in t["collision_cause"][collided]]
+    kinds = sorted(set(causes), key=lambda k: -causes.count(k))
+    out["by_cause"] = [(k, causes.count(k)) for k in kinds]
+    times = t["collision_time_s"][collided]
+    out["late"] = {"after_s": late_s, "collisions": int((times > late_s).sum())}
+    return out
+
+
+def _share(k: int, n: int) -> str:
+    return f"{k / n:.3f}" if n else "n/a"
+
+
+def markdown(b: dict) -> str:
+    lines = [f"{b['episodes']} episodes, {b['collisions']} collisions (rate {_share(b['collisions'], b['episodes'])})."]
+
+    def table(title: str, head: str, rows):
+        lines.extend(["", f"## {title}", "", f"| {head} | episodes | collisions | collision rate |", "|---|---|---|---|"])
+        lines.extend(f"| {label} | {n} | {c} | {_share(c, n)} |" for label, n, c in rows if n)
+
+    table("By number of waypoints N", "N", b["by_n"])
+    if "by_tilt" in b:
+        table("By the platform's maximum tilt (rad)", "max tilt", b["by_tilt"])
+    else:
+        lines += ["", "No platform-probe columns (evaluated with --no-platform-probe): no tilt or forced tables."]
+    table("By foot friction", "friction", b["by_friction"])
+    if "by_forced" in b:
+        table("Forced by the world (the Coulomb block slides off or loses contact) or not", "world",
+              b["by_forced"])  # fmt: skip
+        tail = b["tilt_tail"]
+        lines += ["", f"Tilt tail (max tilt >= {TAIL_TILT_RAD} rad): {tail['episodes']} episodes "
+                      f"({_share(tail['episodes'], b['episodes'])} of all), {tail['collisions']} collisions "
+                      f"({_share(tail['collisions'], b['collisions'])} of all collisions)."]  # fmt: skip
+    lines += ["", "## Failures by cause (the first body that touched, or the fall)", "",
+              "| cause | collisions | share |", "|---|---|---|"]  # fmt: skip
+    lines += [f"| {k} | {c} | {_share(c, b['collisions'])} |" for k, c in b["by_cause"]]
+    late = b["late"]
+    lines += ["", f"Failures after {late['after_s']:g} s: {late['collisions']} of {b['collisions']} "
+                  f"({_share(late['collisions'], b['collisions'])})."]  # fmt: skip
+    return "\n".join(lines)
+
+
+def plot(t: dict[str, np.ndarray], b: dict, path: Path) -> bool:
+    """Four panels: collision rate by N, by max tilt, by friction; failure times. False without matplotlib."""
+    try:
+        import matplotlib
+    except ImportError:
+        return False
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lasmp.atomic import atomic_write_with
+
+    panels = [("N (waypoints)", b["by_n"]), ("platform max tilt (rad)", b.get("by_tilt", [])),
+              ("foot friction", b["by_friction"])]  # fmt: skip
+    fig, axes = plt.subplots(1, 4, figsize=(17, 3.6))
+    for ax, (title, rows) in zip(axes, panels, strict=False):
+        rows = [r for r in rows if r[1]]
+        ax.bar(range(len(rows)), [c / n for _, n, c in rows], color="tab:red")
+        ax.set_xticks(range(len(rows)), [r[0] for r in rows], rotation=45, fontsize=7)
+        ax.set_ylim(0, 1)
+        ax.set_title(f"collision rate by {title}", fontsize=9)
+    times = t["collision_time_s"][t["collided"] > 0.5]
+    axes[3].hist(times[np.isfinite(times)], bins=np.arange(0, 10.5, 0.5), color="tab:gray")
+    axes[3].axvline(b["late"]["after_s"], color="k", ls="--", lw=1)
+    axes[3].set_title("time of the collision (s)", fontsize=9)
+    fig.tight_layout()
+    atomic_write_with(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+    plt.close(fig)
+    return True
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m lasmp.eval.breakdown", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p.add_argument("dir", type=Path, help="an evaluation directory (evaluate.py --out), with episodes.csv")
+    p.add_argument("--plot", type=Path, help="also draw the breakdown to this PNG")
+    p.add_argument("--late-s", type=float, default=8.0, help="failures after this time count as late (s)")
+    args = p.parse_args(argv)
+    try:
+        table = read_csv(args.dir / "episodes.csv")
+    except EpisodesFileError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    b = breakdown(table, args.late_s)
+    print(markdown(b))
+    if args.plot is not None and not plot(table, b, args.plot):
+        print("\n(no plot: matplotlib is not installed)", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

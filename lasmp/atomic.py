@@ -1,8 +1,11 @@
 """Atomic file writes: nothing a run produces is ever left half-written.
 
-Both helpers write to a temporary file in the target's directory, flush it to disk, give it
-mode 0644 and rename it over the target (`os.replace` is atomic on POSIX); on any error the
-temporary file is removed and the target is untouched.
+Both helpers write to a temporary file in the target's directory (a hidden `.<name>.*.tmp`),
+flush it to disk, give it mode 0644 and rename it over the target (`os.replace` is atomic on
+POSIX); on any error the temporary file is removed and the target is untouched. A failure of the
+file system (disk full, no permission, a parent that is a file) raises `AtomicWriteError`, whose
+message is one line naming the target. Only a killed process leaves a temporary file behind:
+`remove_stale_temporaries` clears them where no writer can be running (a locked run directory).
 """
 
 from __future__ import annotations
@@ -13,21 +16,38 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+TEMPORARY_SUFFIX = ".tmp"
+
+
+class AtomicWriteError(OSError):
+    """Writing a file failed in the file system; the target is unchanged. str() is one line."""
+
+    def __init__(self, path: str | os.PathLike, cause: OSError):
+        super().__init__(cause.errno, cause.strerror or str(cause), os.fspath(path))
+
+    def __str__(self) -> str:
+        return f"cannot write {self.filename}: {self.strerror} (the file is left as it was)"
+
 
 @contextmanager
 def _replacing(path: str | os.PathLike) -> Iterator[str]:
     """Yield a temporary file name next to `path`; rename it over `path` when the block succeeds."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX, dir=path.parent)
+    except OSError as err:
+        raise AtomicWriteError(path, err) from err
     os.close(fd)
     try:
         yield tmp
         os.chmod(tmp, 0o644)  # mkstemp makes 0600
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as err:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(err, OSError) and not isinstance(err, AtomicWriteError):
+            raise AtomicWriteError(path, err) from err
         raise
 
 
@@ -44,3 +64,12 @@ def atomic_write_with(path: str | os.PathLike, write: Callable[[str], None]) -> 
     """For writers that take a file name: `write(tmp_name)`, then the same rename as `atomic_open`."""
     with _replacing(path) as tmp:
         write(tmp)
+
+
+def remove_stale_temporaries(directory: str | os.PathLike) -> list[Path]:
+    """Delete the temporary files that writes killed mid-way left in `directory` (not below it);
+    return them. Only where no write can be under way (the caller holds the directory's lock)."""
+    stale = [p for p in Path(directory).glob(f".*{TEMPORARY_SUFFIX}") if p.is_file()]
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return stale

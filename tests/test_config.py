@@ -186,6 +186,7 @@ def test_a_saved_config_reads_back_to_the_same_train_cfg(task):
         "device",
         "torch_threads",
         "resume",
+        "resume_drop_env_state",
         "env",
         "policy",
         "algo",

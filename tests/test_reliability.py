@@ -18,6 +18,7 @@ import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo.checkpoint import atomic_torch_save, read_checkpoint
+from lasmp.plainstate import unpack
 from lasmp.train import make_runner, to_train_cfg, train
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -237,9 +238,19 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
     for key in ("actor_state_dict", "critic_state_dict"):
         for name, value in a[key].items():
             assert torch.equal(value, b[key][name]), f"{key}.{name}"
-    np.testing.assert_array_equal(np.asarray(a["env_state"]["run"]["sim"]["state"]),
-                                  np.asarray(b["env_state"]["run"]["sim"]["state"]))  # fmt: skip
+    physics = [unpack(x["env_state"]["run"]["sim"], name="physics state")["state"] for x in (a, b)]
+    np.testing.assert_array_equal(np.asarray(physics[0]), np.asarray(physics[1]))
     assert torch.equal(a["rng_state"]["torch"], b["rng_state"]["torch"])
+    # the adaptive schedule's learning rate goes on from the checkpoint's, not from algo.learning_rate
+    # (rsl-rl-lib before 5.4.2 reset it on load): at the resume and, so, at the end
+    saved_lr = read_checkpoint(resume)["optimizer_state_dict"]["param_groups"][0]["lr"]
+    assert saved_lr != pytest.approx(1e-3)  # the schedule moved it in the first 2 iterations
+    probe = make_runner(tiny(tmp_path / "p", algo=algo, **over), None)
+    probe.load(resume)
+    assert probe.alg.learning_rate == saved_lr
+    assert all(group["lr"] == saved_lr for group in probe.alg.optimizer.param_groups)
+    lr_a, lr_b = (x["optimizer_state_dict"]["param_groups"][0]["lr"] for x in (a, b))
+    assert lr_a == lr_b
     # the logged episode rewards go on too: sums of the running episodes, windows of the finished ones
     log_a, log_b = a["episode_log_state"], b["episode_log_state"]
     assert torch.equal(log_a["reward_sum"], log_b["reward_sum"]) and log_a["reward_sum"].abs().sum() > 0

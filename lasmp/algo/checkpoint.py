@@ -81,6 +81,8 @@ def read_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
     for key in REQUIRED_KEYS:
         if key not in data:
             raise CheckpointError(f"checkpoint {path} lacks '{key}'")
+    if type(data["iter"]) is not int or data["iter"] < 0:
+        raise CheckpointError(f"checkpoint {path}: 'iter' must be an iteration >= 0, got {data['iter']!r}")
     data["path"] = str(path)
     return data
 
@@ -126,17 +128,36 @@ def is_policy_only(data: dict) -> bool:
     return data.get("kind") == "policy" or "optimizer_state_dict" not in data
 
 
-def policy_checkpoint(src: str | Path, dst: str | Path) -> Path:
+def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False) -> Path:
     """Write the policy checkpoint of `src` (a checkpoint or run directory) to `dst`: everything but
     the optimizers' states and the envs' running state (networks with their normalizers, config,
-    layout, the task's env state such as the curriculum)."""
+    layout, the task's env state such as the curriculum). An existing `dst` (`src` itself included)
+    is overwritten only with `force`."""
     data = read_checkpoint(src)
+    dst = Path(dst)
+    if dst.exists() and not force:
+        if dst.resolve() == Path(data["path"]).resolve():
+            what = "is the checkpoint it is made from: writing over it would drop its optimizers' states " \
+                   "and running state, so that the run could no longer be resumed"  # fmt: skip
+        else:
+            what = f"exists ({_kind_of(dst)})"
+        raise CheckpointError(f"{dst} {what}: give another OUT, or --force to overwrite it")
     slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
     slim["env_state"] = {k: v for k, v in (data.get("env_state") or {}).items() if k != "run"}  # task state only
     slim.update(kind="policy", source=f"{Path(data['path']).name} (iteration {data['iter']})")
     check_finite(slim, f"refusing to write {dst}")
     atomic_torch_save(slim, dst)
     return Path(dst)
+
+
+def _kind_of(path: Path) -> str:
+    """What an existing file is, in a few words, for a refusal to overwrite it."""
+    if path.is_dir():
+        return "a directory"
+    try:
+        return "a policy checkpoint" if is_policy_only(read_checkpoint(path)) else "a full checkpoint"
+    except CheckpointError:
+        return "not a lasmp checkpoint"
 
 
 def check_compatible(data: dict, env) -> None:
@@ -214,7 +235,8 @@ def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | Non
 
 
 def main(argv=None) -> int:
-    """`python -m lasmp.algo.checkpoint policy SRC DST`: write the policy checkpoint of SRC to DST;
+    """`python -m lasmp.algo.checkpoint policy SRC DST [--force]`: write the policy checkpoint of SRC to
+    DST (an existing DST only with --force);
     `python -m lasmp.algo.checkpoint info PATH`: what a checkpoint holds."""
     import argparse
     import sys
@@ -224,6 +246,7 @@ def main(argv=None) -> int:
     pol = sub.add_parser("policy", help="strip the optimizer states (a few MB to ship or share)")
     pol.add_argument("src", help="a checkpoint file or run directory (its latest)")
     pol.add_argument("dst")
+    pol.add_argument("--force", action="store_true", help="overwrite DST if it exists (even when it is SRC)")
     inf = sub.add_parser("info", help="iteration, task, policy, size and kind of a checkpoint")
     inf.add_argument("path")
     conv = sub.add_parser("convert", help="rewrite an older checkpoint (pickled objects) in the safe format; "
@@ -234,7 +257,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     try:
         if args.cmd == "policy":
-            out = policy_checkpoint(args.src, args.dst)
+            out = policy_checkpoint(args.src, args.dst, force=args.force)
             print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
         elif args.cmd == "convert":
             if not args.trust:
@@ -249,7 +272,7 @@ def main(argv=None) -> int:
             print(f"{data['path']}: iteration {data['iter']}, task {cfg.get('task')}, policy "
                   f"{cfg.get('policy', {}).get('name')}, {'policy checkpoint' if is_policy_only(data) else 'full'}, "
                   f"curriculum {data.get('env_state', {}).get('curriculum')}")  # fmt: skip
-    except (CheckpointError, FloatingPointError) as err:
+    except (CheckpointError, FloatingPointError, OSError) as err:  # OSError: a full disk, a bad path
         print(f"error: {err}", file=sys.stderr)
         return 2
     return 0

@@ -3,9 +3,12 @@
 
 - Divergence: after every update, a non-finite loss or parameter raises `FloatingPointError`
   naming it, and `save` refuses to write a non-finite checkpoint, so the last good one stays.
+- Faults: each iteration counts the env-steps whose physics faulted (the env's `fault_count`; the
+  progress line shows them); more than `max_fault_fraction` of an iteration's env-steps raises
+  `TrainingFaulted` before its update, naming the cause.
 - Interruption: SIGINT (Ctrl-C) or SIGTERM during `learn` lets the current iteration finish, writes
   `model_<it>.pt` and raises `TrainingInterrupted` (the caller prints the resume command). A second
-  signal aborts at once.
+  signal exits at once (`SystemExit`, code 128 + signal: 130 / 143), without a checkpoint.
 """
 
 from __future__ import annotations
@@ -14,7 +17,9 @@ import datetime
 import math
 import signal
 import statistics
+import sys
 import threading
+from contextlib import contextmanager
 from pathlib import Path
 
 from rsl_rl.runners import OnPolicyRunner
@@ -46,10 +51,15 @@ class TrainingInterrupted(Exception):
                          + (f", saved {checkpoint}" if checkpoint else " (no log_dir: nothing saved)"))  # fmt: skip
 
 
+class TrainingFaulted(RuntimeError):
+    """Too many of an iteration's env-steps faulted (the physics diverged); the message says how many."""
+
+
 class OneLineLogger(Logger):
     """TensorBoard scalars as rsl_rl's logger writes them, but one terminal line per iteration."""
 
     iteration_done = None  # callback(it) after each iteration's log (the runner's interruption check)
+    iteration_faults: int | None = None  # this iteration's env-steps whose physics faulted (the runner sets it)
 
     def log(self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std, rnd_weight,
             **kwargs) -> None:  # fmt: skip
@@ -96,6 +106,8 @@ class OneLineLogger(Logger):
                 fields.append(f"{label} {extras[key]:{fmt}}")
         if "roa_exp" in loss_dict:
             fields.append(f"L_exp {loss_dict['roa_exp']:.4f}")
+        if self.iteration_faults is not None:
+            fields.append(f"faults {self.iteration_faults}")
         print(" | ".join(fields + [f"ETA {eta}"]), flush=True)
 
 
@@ -104,10 +116,14 @@ class LasmpRunner(OnPolicyRunner):
     checkpoint on SIGINT / SIGTERM."""
 
     def __init__(
-        self, env, train_cfg: dict, log_dir: str | None, device: str = "cpu", full_config: dict | None = None
-    ):
+        self, env, train_cfg: dict, log_dir: str | None, device: str = "cpu", full_config: dict | None = None,
+        max_fault_fraction: float = 0.5,
+    ):  # fmt: skip
         super().__init__(env, train_cfg, log_dir=log_dir, device=device)
         self.full_config = full_config or {}
+        self.max_fault_fraction = max_fault_fraction
+        self._iteration = 0  # the iteration under way
+        self._faults_before = 0  # env.fault_count at its start
         self.logger = OneLineLogger(
             log_dir=log_dir, cfg=self.cfg, env_cfg=env.cfg, num_envs=env.num_envs, is_distributed=False,
             gpu_world_size=1, gpu_global_rank=0, device=device,
@@ -117,13 +133,32 @@ class LasmpRunner(OnPolicyRunner):
         self._update = self.alg.update
         self.alg.update = self._checked_update  # rsl_rl's loop calls alg.update() once per iteration
 
-    # -- divergence guard ------------------------------------------------------------------------
+    # -- fault and divergence guards --------------------------------------------------------------
+    def _check_faults(self) -> None:
+        """Count the rollout's faulted env-steps for the progress line; stop past the threshold."""
+        count = getattr(self.env, "fault_count", None)
+        if count is None:
+            return
+        faults, self._faults_before = count - self._faults_before, count
+        self.logger.iteration_faults = faults
+        steps = self.cfg["num_steps_per_env"] * self.env.num_envs
+        if faults > self.max_fault_fraction * steps:
+            raise TrainingFaulted(
+                f"physics faults: {faults:,} of the {steps:,} env-steps of iteration {self._iteration + 1} "
+                f"faulted ({faults / steps:.0%}, more than runner.max_fault_fraction={self.max_fault_fraction}). The "
+                "simulation diverges (MuJoCo errors or warnings, non-finite state, runaway joints): check "
+                "env.sim.dt_s, env.control.action_scale, the trajectory file and the robots' parameters "
+                "(runner.max_fault_fraction=1 trains on regardless). Stopped before this iteration's update; "
+                "the last saved checkpoint is intact."
+            )
+
     def _checked_update(self) -> dict[str, float]:
+        self._check_faults()
         losses = self._update()
         bad = {k: v for k, v in losses.items() if not math.isfinite(float(v))}
         if bad:
             raise FloatingPointError(
-                f"non-finite loss after the update of iteration {self.current_learning_iteration + 1}: {bad}. "
+                f"non-finite loss after the update of iteration {self._iteration + 1}: {bad}. "
                 "Training diverged; lower algo.learning_rate or check the rewards. The last saved checkpoint "
                 "is intact (none is written from a diverged state)."
             )
@@ -133,7 +168,9 @@ class LasmpRunner(OnPolicyRunner):
     # -- interruption ------------------------------------------------------------------------------
     def _on_signal(self, signum, _frame) -> None:
         if self._signal is not None:  # a second signal: stop now, without a checkpoint
-            raise KeyboardInterrupt
+            print(f"\n{signal.Signals(signum).name} again: stopped at once, without a checkpoint (the last "
+                  "saved one is intact)", file=sys.stderr, flush=True)  # fmt: skip
+            raise SystemExit(128 + signum)
         self._signal = signum
         print(f"\n{signal.Signals(signum).name}: finishing this iteration, then saving a checkpoint "
               "(send it again to abort at once)", flush=True)  # fmt: skip
@@ -143,6 +180,7 @@ class LasmpRunner(OnPolicyRunner):
             self.alg.rollout_on_estimates(iteration)
 
     def _after_iteration(self, it: int) -> None:
+        self._iteration = it + 1
         self._set_rollout_mode(it + 1)  # the next iteration's rollout and update
         if self._signal is None:
             return
@@ -160,6 +198,8 @@ class LasmpRunner(OnPolicyRunner):
         if threading.current_thread() is threading.main_thread():
             previous = {s: signal.signal(s, self._on_signal) for s in INTERRUPT_SIGNALS}
         self._signal = None
+        self._iteration = self.current_learning_iteration
+        self._faults_before = getattr(self.env, "fault_count", 0)
         self._set_rollout_mode(self.current_learning_iteration)
         try:
             super().learn(num_learning_iterations, init_at_random_ep_len)
@@ -209,13 +249,29 @@ class LasmpRunner(OnPolicyRunner):
                 f"{data['path']} is a policy checkpoint (no optimizer states): play or evaluate it; to resume "
                 "training, give the run's own model_<N>.pt"
             )
-        self.alg.load(data, load_cfg, strict)
+        where = data.get("path", "the checkpoint")
+        # a file that passed read_checkpoint may still not fit: its errors as CheckpointError, naming it
+        with _not_fitting(f"{where} does not fit this policy and learner"):
+            self.alg.load(data, load_cfg, strict)
         if load_cfg is None or load_cfg.get("iteration", True):
             self.current_learning_iteration = int(data["iter"]) + 1  # the saved iteration is complete
         if data.get("env_state"):  # the running state only to resume training in an env of the same size
             run = load_cfg is None or load_cfg.get("env_run_state", True)
-            if self.env.load_state_dict(data["env_state"], run=run) and data.get("episode_log_state"):
-                self._load_episode_log_state(data["episode_log_state"])
+            with _not_fitting(f"{where}: the envs' running state does not fit this env"):
+                restored = self.env.load_state_dict(data["env_state"], run=run)
+                if restored and data.get("episode_log_state"):
+                    self._load_episode_log_state(data["episode_log_state"])
         if data.get("rng_state"):  # older checkpoints lack it: the streams then restart from the seed
-            set_rng_state(data["rng_state"], self.env.rng)
+            with _not_fitting(f"{where}: its random state cannot be restored"):
+                set_rng_state(data["rng_state"], self.env.rng)
         return data.get("infos")
+
+
+@contextmanager
+def _not_fitting(what: str):
+    try:
+        yield
+    except CheckpointError:
+        raise
+    except (RuntimeError, ValueError, KeyError, TypeError, IndexError) as err:
+        raise CheckpointError(f"checkpoint {what}: {err}") from err

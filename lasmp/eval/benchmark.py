@@ -73,6 +73,19 @@ ROBOT_FIELDS = {
 }
 
 
+# robot array key -> its physical range [low, high] (the bounds DomainRandRanges.validate allows any
+# randomization range to take): a value outside (a negative mass or friction) would give NaN metrics
+ROBOT_RANGES = {
+    "robot_trunk_mass_kg": (0.5, 50.0),
+    "robot_com_shift_m": (-0.5, 0.5),
+    "robot_foot_friction": (0.0, 5.0),
+    "robot_joint_kp": (0.0, 500.0),
+    "robot_joint_kd": (0.0, 50.0),
+    "robot_platform_kp_factor": (0.0, 100.0),
+    "robot_platform_kd_factor": (0.0, 100.0),
+}
+
+
 class BenchmarkFileError(ValueError):
     """A benchmark file is missing or malformed; the message names the file and the problem."""
 
@@ -181,6 +194,14 @@ def load(path) -> Benchmark:
             )
         if not np.all(np.isfinite(a)):
             raise BenchmarkFileError(f"{path}: non-finite values (NaN/inf) in {key!r}")
+        low, high = ROBOT_RANGES[key]
+        outside = (a < low) | (a > high)
+        if np.any(outside):
+            row = int(np.flatnonzero(outside.reshape(r, -1).any(axis=1))[0])
+            raise BenchmarkFileError(
+                f"{path}: {key!r} of robot {row} is {a[row].tolist()}, outside its physical range "
+                f"[{low:g}, {high:g}]"
+            )
         robots[name] = a.astype(np.float64)
     return Benchmark(traj, Intrinsics(**robots), int(get("seed")))
 

@@ -243,4 +243,4 @@ class RoughStaticEnv(BaseEnv):
     TASK_STATE = ("command", "command_time_left_s", "push_time_left_s", "pushed", "push_dv_mps", "action",
                   "action_prev", "q_dot_prev", "contact_prev", "t_air_s", "intrinsics", "x_imp", "rewards", "readout",
                   "last_state")  # fmt: skip
-    RUN_STATE_CLASSES = (rw.RoughStepState,)
+    RUN_STATE_CLASSES = (rw.RoughStepState, RobotReadout)

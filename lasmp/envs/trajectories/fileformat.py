@@ -13,6 +13,9 @@
   not-a-knot ends.
 
 Optional ``meta_json``: a JSON string (e.g. split and seed), available as ``traj.meta``.
+A motion far outside any platform's physical range (a waypoint 1,000 km away, a whole path in a
+tenth of a second) is refused, and one well beyond the hardest we know is warned about
+(:func:`check_physical`, ``PHYSICAL_RANGE``).
 Version 1 files (the old interpolating-only generator, which recorded no construction) are
 refused with an error that says how to regenerate them.
 
@@ -25,6 +28,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 import zipfile
 
 import numpy as np
@@ -35,6 +39,78 @@ from lasmp.envs.trajectories.user_made import TrajectoryFileError, check_knots
 
 FORMAT_NAME = "lasmp-trajectories"
 FORMAT_VERSION = 2
+
+# quantity: (unit, warn above, refuse above), of the motion the spline makes (knots included for the
+# positions). The hardest motions we know stay far below the warnings: the generated sets with
+# interpolating splines (11 m/s, 73 m/s^2, 63 rad/s^2) and the real-motion suite (a 131 m train ride
+# at 18 m/s, a lift's emergency stop at 6 m/s^2); above the refusals no vehicle moves
+PHYSICAL_RANGE = {
+    "position": ("m", 1e3, 1e4),
+    "angle": ("rad", 20.0, 100.0),
+    "speed": ("m/s", 50.0, 340.0),
+    "angular speed": ("rad/s", 30.0, 100.0),
+    "acceleration": ("m/s^2", 150.0, 1e3),
+    "angular acceleration": ("rad/s^2", 150.0, 1e3),
+}
+_PEAK_POINTS = np.linspace(0.0, 1.0, 3)  # where each polynomial piece is evaluated: ends and middle
+
+
+def _peaks(traj: PiecewisePoly) -> dict[str, np.ndarray]:
+    """Per row, the largest value of each PHYSICAL_RANGE quantity over its polynomial pieces (each
+    evaluated at _PEAK_POINTS of its length) and, for the positions, over its knots."""
+    c = traj.coeffs  # (M, S, D+1, 6): pos = sum_j c_j tau^j on each piece
+    valid = np.arange(c.shape[1])[None, :] < traj.n_segments[:, None]  # (M, S)
+    b = np.where(np.isfinite(traj.breaks_s), traj.breaks_s, 0.0)
+    h = np.where(valid, np.diff(b, axis=1), 0.0)  # the pieces' lengths, s (0 for padding)
+    tau = (h[:, :, None] * _PEAK_POINTS)[..., None]  # (M, S, P, 1)
+    pos = np.broadcast_to(c[:, :, None, -1], tau.shape[:3] + (6,)).copy()
+    vel, half_acc = np.zeros_like(pos), np.zeros_like(pos)
+    for j in range(c.shape[2] - 2, -1, -1):  # Horner with derivatives, as PiecewisePoly.evaluate
+        half_acc = half_acc * tau + vel
+        vel = vel * tau + pos
+        pos = pos * tau + c[:, :, None, j]
+    acc = 2.0 * half_acc
+    mask = valid[:, :, None]
+
+    def peak(x, lin: bool):
+        v = np.linalg.norm(x[..., :3], axis=-1) if lin else np.abs(x[..., 3:]).max(axis=-1)
+        return np.where(mask, v, 0.0).max(axis=(1, 2))
+
+    knots = np.nan_to_num(traj.knot_poses)
+    return {
+        "position": np.maximum(peak(pos, True), np.linalg.norm(knots[..., :3], axis=-1).max(axis=1)),
+        "angle": np.maximum(peak(pos, False), np.abs(knots[..., 3:]).max(axis=(1, 2))),
+        "speed": peak(vel, True),
+        "angular speed": peak(vel, False),
+        "acceleration": peak(acc, True),
+        "angular acceleration": peak(acc, False),
+    }
+
+
+def check_physical(traj: PiecewisePoly, path: str, error: type[Exception] = TrajectoryFileError) -> None:
+    """Raise `error` for a motion beyond PHYSICAL_RANGE's refusals (naming the row, the quantity and
+    the path's duration); warn once for those beyond its warnings."""
+    if len(traj) == 0:
+        return
+    peaks = _peaks(traj)
+    unusual = []
+    for name, (unit, warn, refuse) in PHYSICAL_RANGE.items():
+        row = int(np.argmax(peaks[name]))
+        value = float(peaks[name][row])
+        said = f"row {row}: {name} {value:.3g} {unit} (its path lasts {float(traj.duration_s[row]):.3g} s)"
+        if not value <= refuse:  # NaN included
+            raise error(
+                f"{path}: {said} is far outside the physical range of a platform's motion (refused above "
+                f"{refuse:g} {unit}): check the file's units and times"
+            )
+        if value > warn:
+            unusual.append(f"{said}, above {warn:g} {unit}")
+    if unusual:
+        warnings.warn(
+            f"{path}: beyond the physical range of any platform motion we know: {'; '.join(unusual)}. "
+            "Check the file's units and times",
+            stacklevel=3,
+        )
 
 
 def waypoint_arrays(traj: PiecewisePoly) -> dict[str, np.ndarray]:
@@ -144,7 +220,9 @@ def waypoints_from_arrays(get, path: str, error: type[Exception]) -> PiecewisePo
         raise error(f"{path}: {exc}") from None
     if np.any(nk != nw + 1):
         raise error(f"{path}: 'n_waypoints' disagrees with the number of knots (NaN padding) in some rows")
-    return PiecewisePoly.from_knots(t, p, nk, spec.code, spec.degree, nw)
+    traj = PiecewisePoly.from_knots(t, p, nk, spec.code, spec.degree, nw)
+    check_physical(traj, path, error)
+    return traj
 
 
 def load(path) -> PiecewisePoly:
@@ -171,6 +249,7 @@ def load(path) -> PiecewisePoly:
             t = np.broadcast_to(t, p.shape[:2])
         nk = check_knots(np.asarray(t, np.float64), p.astype(np.float64), path)
         traj = PiecewisePoly.from_knots(t, p, nk, SAMPLES, 3, np.full(len(nk), -1))
+        check_physical(traj, path)
     else:
         raise err(f"{path}: unknown kind {kind!r}; valid: 'waypoints', 'samples'")
     if get("meta_json", optional=True) is not None:

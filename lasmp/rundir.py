@@ -1,0 +1,146 @@
+"""Run directories: one training at a time in each, and never a new run over an old one.
+
+- A directory *holds a run* when it has a `config.yaml` or a `model_<N>.pt` (`run_files`).
+- `RunLock`: a training holds `fcntl.flock` on `<dir>/.lock`, a file that holds its PID, for as long
+  as it runs; a second process gets `RunDirError` naming that PID. The kernel drops the lock when a
+  process ends, however it ends, so a `.lock` left by a killed training blocks nothing; a training
+  that ends removes it.
+- `claim`: create the directory, lock it, check what it holds and remove the temporary files of
+  saves killed mid-write; a start that fails leaves no directory it created behind.
+
+This module imports no torch, so that another process can take a run's lock cheaply.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import re
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from lasmp.atomic import remove_stale_temporaries
+
+LOCK_NAME = ".lock"
+_CHECKPOINT = re.compile(r"model_(\d+)\.pt")
+
+
+class RunDirError(ValueError):
+    """A run directory cannot be used as asked; the message names it and says why."""
+
+
+def checkpoints(run_dir: str | Path) -> dict[int, Path]:
+    """The `model_<N>.pt` files of `run_dir`, by N."""
+    found = {}
+    for path in Path(run_dir).glob("model_*.pt"):
+        m = _CHECKPOINT.fullmatch(path.name)
+        if m:
+            found[int(m.group(1))] = path
+    return dict(sorted(found.items()))
+
+
+def run_files(run_dir: str | Path) -> list[str]:
+    """The names of the files that make `run_dir` a run's directory: config.yaml, model_<N>.pt."""
+    run_dir = Path(run_dir)
+    names = ["config.yaml"] if (run_dir / "config.yaml").is_file() else []
+    return names + [p.name for p in checkpoints(run_dir).values()]
+
+
+def describe(names: list[str]) -> str:
+    """At most four names, then how many more."""
+    shown = ", ".join(names[:4])
+    return shown + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+
+
+class RunLock:
+    """An exclusive lock on a run directory for this process (see the module docstring)."""
+
+    def __init__(self, run_dir: str | Path):
+        self.run_dir = Path(run_dir)
+        self.path = self.run_dir / LOCK_NAME
+        self._fd: int | None = None
+
+    def acquire(self) -> None:
+        """Take the lock, or raise RunDirError naming the PID of the process that holds it."""
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
+                os.close(fd)
+                raise RunDirError(
+                    f"{self.run_dir} is in use by another training (PID {holder}): wait for it to end, or "
+                    "give another runner.log_dir"
+                ) from None
+            # a holder that ended may have removed the file between our open and our lock: lock anew
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self._fd = fd
+
+    def release(self) -> None:
+        if self._fd is None:
+            return
+        self.path.unlink(missing_ok=True)  # while still held: a process that opened it locks anew
+        fcntl.flock(self._fd, fcntl.LOCK_UN)
+        os.close(self._fd)
+        self._fd = None
+
+    def __enter__(self) -> RunLock:
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def _make_dirs(path: Path) -> list[Path]:
+    """mkdir -p; return the directories it created, outermost first."""
+    if path.exists() and not path.is_dir():
+        raise RunDirError(f"runner.log_dir={path} is a file, not a directory")
+    missing = []
+    for p in (path, *path.parents):
+        if p.exists():
+            break
+        missing.append(p)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise RunDirError(f"cannot make runner.log_dir={path}: {err.strerror} ({err.filename})") from None
+    return missing[::-1]
+
+
+@contextmanager
+def claim(run_dir: str | Path, check: Callable[[Path], None]) -> Iterator[Path]:
+    """Create `run_dir`, lock it, call `check(run_dir)` (which raises if the directory must not be
+    used), remove stale temporary files (printing them), and hold the lock through the block. If
+    anything fails, the directories made here are removed again where they are still empty."""
+    run_dir = Path(run_dir)
+    made = _make_dirs(run_dir)
+    lock = RunLock(run_dir)
+    try:
+        lock.acquire()
+        try:
+            check(run_dir)
+            stale = remove_stale_temporaries(run_dir)
+            if stale:
+                print(f"removed {len(stale)} temporary file(s) of a save that was killed mid-write: "
+                      f"{describe([p.name for p in stale])}", flush=True)  # fmt: skip
+            yield run_dir
+        finally:
+            lock.release()
+    except BaseException:
+        for d in reversed(made):
+            try:
+                d.rmdir()
+            except OSError:  # it holds what the run wrote
+                break
+        raise

@@ -11,6 +11,8 @@ cannot take effect (`RESUME_FIXED`).
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import datetime
 import os
 import re
@@ -21,6 +23,7 @@ from pathlib import Path
 import torch
 from omegaconf import OmegaConf
 
+from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import CheckpointError, check_finite, is_policy_only, read_checkpoint
 from lasmp.algo.runner import LasmpRunner, TrainingFaulted, TrainingInterrupted
 from lasmp.atomic import atomic_open
@@ -75,15 +78,18 @@ def to_train_cfg(cfg) -> TrainCfg:
     return cfg
 
 
-def make_runner(cfg: TrainCfg, log_dir: str | None) -> LasmpRunner:
+def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunner:
+    """The env and the runner of `cfg`; in a data-parallel job, rank k's envs and torch streams are
+    seeded with seed + k (its own physics, trajectories and curriculum draws); the saved config keeps
+    the job's seed."""
     if cfg.device.startswith("cuda") and not torch.cuda.is_available():
         raise ConfigError(
             f"device={cfg.device} but torch sees no CUDA device (install a CUDA build of torch)"
         )
     if cfg.torch_threads > 0:
         torch.set_num_threads(cfg.torch_threads)
-    seed_everything(cfg.seed)
-    env = make_env(cfg)
+    seed_everything(cfg.seed + rank)
+    env = make_env(cfg if rank == 0 else dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, seed=cfg.seed + rank)))
     return LasmpRunner(env, rsl_rl_cfg(cfg), log_dir=log_dir, device=cfg.device, full_config=to_plain(cfg),
                        max_fault_fraction=cfg.runner.max_fault_fraction)  # fmt: skip
 
@@ -247,9 +253,15 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
         data = read_checkpoint(cfg.resume, "cpu")
         cfg = resumed_cfg(cfg, data, explicit)
         changed = check_resume(cfg, data)
+    ranks = dp.ranks_from_env()  # torchrun: rank 0 alone holds the run directory, logs and saves
+    if ranks.distributed:
+        cfg.device = dp.rank_device(cfg.device, ranks)
+        dp.setup(ranks, cfg.device)
     log_dir = Path(cfg.runner.log_dir or (Path(data["path"]).parent if data else default_log_dir(cfg)))
-    with claim(log_dir, _check_run_dir(log_dir, data)):
-        runner = make_runner(cfg, str(log_dir))
+    owner = claim(log_dir, _check_run_dir(log_dir, data)) if ranks.is_main else contextlib.nullcontext()
+    say = print if ranks.is_main else (lambda *a, **k: None)
+    with owner:
+        runner = make_runner(cfg, str(log_dir) if ranks.is_main else None, ranks.rank)
         if data is not None:
             keep = {"actor": True, "critic": True, "optimizer": True, "iteration": True,
                     "env_run_state": not cfg.resume_drop_env_state}  # fmt: skip
@@ -257,13 +269,14 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
             apply_learning_rates(runner, changed)
             others = {k: v for k, v in changed.items() if k not in LEARNING_RATES}
             if others:
-                print("resume: in effect from now on, changed from the run's config: "
+                say("resume: in effect from now on, changed from the run's config: "
                       + ", ".join(f"{k} {old} -> {new}" for k, (old, new) in others.items()), flush=True)  # fmt: skip
-            print(f"resumed from {data['path']} at iteration {runner.current_learning_iteration}", flush=True)
-        # only now, with everything checked, the run directory's config
-        with atomic_open(log_dir / "config.yaml", "w") as f:
-            f.write(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
-        print(f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs, {cfg.runner.max_iterations} "
+            say(f"resumed from {data['path']} at iteration {runner.current_learning_iteration}", flush=True)
+        if ranks.is_main:  # only now, with everything checked, the run directory's config
+            with atomic_open(log_dir / "config.yaml", "w") as f:
+                f.write(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
+        processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
+        say(f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs{processes}, {cfg.runner.max_iterations} "
               f"iterations, logs in {log_dir}", flush=True)  # fmt: skip
         last = (
             runner.current_learning_iteration + cfg.runner.max_iterations - 1
@@ -307,6 +320,8 @@ def main(cfg, overrides: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C before training started (the runner handles it during training)
         print("interrupted before training started: nothing saved", file=sys.stderr)
         return 130
+    finally:
+        dp.teardown()
     return 0
 
 

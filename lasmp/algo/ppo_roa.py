@@ -27,6 +27,7 @@ from itertools import chain
 import torch
 import torch.nn as nn
 from rsl_rl.algorithms import PPO
+from rsl_rl.utils.utils import reduce_gradients_in_buckets
 
 from lasmp.algo.precision import resolve_precision
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
@@ -95,7 +96,8 @@ class PPOROA(PPO):
         plan.check_compiler(self.device)
         if plan.compile_mlps:
             self._compile_networks()
-        print(plan.line(), flush=True)
+        if self.gpu_global_rank == 0:  # one line per job
+            print(plan.line(), flush=True)
 
     def _compile_networks(self) -> None:
         """torch.compile in place: the parameters and their state-dict names stay as they are."""
@@ -181,6 +183,8 @@ class PPOROA(PPO):
             self.optimizer.zero_grad()
             self.estimator_optimizer.zero_grad()
             total.backward()
+            if self.is_multi_gpu:  # data-parallel: every rank steps the same, averaged gradients (as PPO's pass)
+                reduce_gradients_in_buckets(self.actor.parameters(), self.gpu_world_size, self.grad_reduce_bucket_mb)
             nn.utils.clip_grad_norm_(self._estimator_params, self.max_grad_norm)
             self.estimator_optimizer.step()
             for p in self._estimator_params:  # PPO's optimizer steps only what the λ term reaches: the encoder

@@ -19,12 +19,14 @@ import signal
 import statistics
 import sys
 import threading
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
 from rsl_rl.runners import OnPolicyRunner
 from rsl_rl.utils.logger import Logger
 
+from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import (
     CHECKPOINT_FORMAT,
     CheckpointError,
@@ -72,7 +74,7 @@ class OneLineLogger(Logger):
     def _log(self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std) -> None:
         if self.writer is None:
             return
-        steps = self.cfg["num_steps_per_env"] * self.num_envs
+        steps = self.cfg["num_steps_per_env"] * self.num_envs * self.gpu_world_size  # all ranks' env-steps
         self.tot_timesteps += steps
         self.tot_time += collect_time + learn_time
         extras: dict[str, float] = {}
@@ -125,13 +127,59 @@ class LasmpRunner(OnPolicyRunner):
         self._iteration = 0  # the iteration under way
         self._faults_before = 0  # env.fault_count at its start
         self.logger = OneLineLogger(
-            log_dir=log_dir, cfg=self.cfg, env_cfg=env.cfg, num_envs=env.num_envs, is_distributed=False,
-            gpu_world_size=1, gpu_global_rank=0, device=device,
+            log_dir=log_dir, cfg=self.cfg, env_cfg=env.cfg, num_envs=env.num_envs, is_distributed=self.is_distributed,
+            gpu_world_size=self.gpu_world_size, gpu_global_rank=self.gpu_global_rank, device=self.device,
         )  # fmt: skip
+        self._final_iteration = -1  # the last iteration of the current learn()
+        self._other_ranks: list | None = None  # rank 0: the other ranks' running state for the next save
         self.logger.iteration_done = self._after_iteration
         self._signal: int | None = None
         self._update = self.alg.update
         self.alg.update = self._checked_update  # rsl_rl's loop calls alg.update() once per iteration
+
+    # -- data-parallel training (lasmp.algo.distributed) -------------------------------------------
+    def _configure_multi_gpu(self) -> None:
+        """rsl_rl's multi-GPU setup without its NCCL-and-CUDA assumption: gloo on a CPU, NCCL on CUDA."""
+        ranks = dp.ranks_from_env()
+        self.gpu_world_size, self.gpu_global_rank, self.gpu_local_rank = ranks.world_size, ranks.rank, ranks.local_rank
+        self.is_distributed = ranks.distributed
+        self.cfg["multi_gpu"] = (
+            {"global_rank": ranks.rank, "local_rank": ranks.local_rank, "world_size": ranks.world_size}
+            if ranks.distributed else None
+        )  # fmt: skip
+        if ranks.distributed:
+            self.device = dp.rank_device(self.device, ranks)
+            dp.setup(ranks, self.device)
+
+    def _share_iteration_end(self, it: int) -> None:
+        """Every rank at the end of iteration `it`: one curriculum, one decision to stop, and, before a
+        save, the other ranks' running state on rank 0."""
+        if hasattr(getattr(self.env, "curriculum", None), "sync"):
+            self.env.curriculum.sync()
+        self._signal = dp.any_rank(self._signal or 0, self.device) or None
+        saving = self._signal is not None or it == self._final_iteration or it % self.cfg["save_interval"] == 0
+        if saving:
+            mine = {"run": self.env.state_dict()["run"], "rng_state": rng_state(self.env.rng)}
+            gathered = dp.gather_to_main(mine)
+            self._other_ranks = gathered[1:] if gathered is not None else None
+
+    def _this_ranks_state(self, data: dict, run: bool) -> dict:
+        """A resume in a job of K ranks: rank k's envs' running state and random state from the
+        checkpoint (rank 0's are its own; the others' are under `other_ranks`)."""
+        others = data.get("other_ranks") or []
+        if not run:
+            return data
+        if len(others) != self.gpu_world_size - 1:
+            raise CheckpointError(
+                f"{data.get('path', 'the checkpoint')} holds the running state of {len(others) + 1} process(es), "
+                f"this job has {self.gpu_world_size}: give resume_drop_env_state=true to start every env's "
+                "episode anew (the resume is then not exact)"
+            )
+        if self.gpu_global_rank == 0:
+            return data
+        mine = others[self.gpu_global_rank - 1]
+        return {**data, "env_state": {**data["env_state"], "run": mine["run"]}, "rng_state": mine["rng_state"],
+                "episode_log_state": None}  # fmt: skip
 
     # -- fault and divergence guards --------------------------------------------------------------
     def _check_faults(self) -> None:
@@ -166,12 +214,16 @@ class LasmpRunner(OnPolicyRunner):
         return losses
 
     # -- interruption ------------------------------------------------------------------------------
+    REPEAT_WINDOW_S = 2.0  # a signal this soon after the first is its echo (torchrun sends SIGTERM twice)
+
     def _on_signal(self, signum, _frame) -> None:
+        if self._signal is not None and time.monotonic() - self._signal_time_s < self.REPEAT_WINDOW_S:
+            return
         if self._signal is not None:  # a second signal: stop now, without a checkpoint
             print(f"\n{signal.Signals(signum).name} again: stopped at once, without a checkpoint (the last "
                   "saved one is intact)", file=sys.stderr, flush=True)  # fmt: skip
             raise SystemExit(128 + signum)
-        self._signal = signum
+        self._signal, self._signal_time_s = signum, time.monotonic()
         print(f"\n{signal.Signals(signum).name}: finishing this iteration, then saving a checkpoint "
               "(send it again to abort at once)", flush=True)  # fmt: skip
 
@@ -182,6 +234,8 @@ class LasmpRunner(OnPolicyRunner):
     def _after_iteration(self, it: int) -> None:
         self._iteration = it + 1
         self._set_rollout_mode(it + 1)  # the next iteration's rollout and update
+        if self.is_distributed:
+            self._share_iteration_end(it)
         if self._signal is None:
             return
         path = None
@@ -199,6 +253,7 @@ class LasmpRunner(OnPolicyRunner):
             previous = {s: signal.signal(s, self._on_signal) for s in INTERRUPT_SIGNALS}
         self._signal = None
         self._iteration = self.current_learning_iteration
+        self._final_iteration = self.current_learning_iteration + num_learning_iterations - 1
         self._faults_before = getattr(self.env, "fault_count", 0)
         self._set_rollout_mode(self.current_learning_iteration)
         try:
@@ -222,6 +277,9 @@ class LasmpRunner(OnPolicyRunner):
             rng_state=rng_state(self.env.rng),
             episode_log_state=self._episode_log_state(),
         )
+        if self.is_distributed:  # every rank's envs, so that a resume of the job continues each of them
+            data["other_ranks"] = self._other_ranks
+            data["world_size"] = self.gpu_world_size
         atomic_torch_save(data, path)
 
     def _episode_log_state(self) -> dict:
@@ -249,6 +307,9 @@ class LasmpRunner(OnPolicyRunner):
                 f"{data['path']} is a policy checkpoint (no optimizer states): play or evaluate it; to resume "
                 "training, give the run's own model_<N>.pt"
             )
+        run_wanted = load_cfg is None or load_cfg.get("env_run_state", True)
+        if self.is_distributed or data.get("other_ranks"):
+            data = self._this_ranks_state(data, run_wanted and bool((data.get("env_state") or {}).get("run")))
         where = data.get("path", "the checkpoint")
         # a file that passed read_checkpoint may still not fit: its errors as CheckpointError, naming it
         with _not_fitting(f"{where} does not fit this policy and learner"):

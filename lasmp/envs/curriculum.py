@@ -118,3 +118,39 @@ class WaypointCurriculum:
             )
         self._level = int(level)
         self._window = deque((bool(x) for x in window), maxlen=self.window_episodes)
+
+
+class SharedCurriculum(WaypointCurriculum):
+    """The curriculum of a data-parallel run (torchrun): one level for all ranks, promoted on the
+    success rate over every rank's episodes (ours).
+
+    `update` only collects a rank's finished episodes; `sync()`, which every rank calls at the same
+    point of each iteration, gathers them from all ranks and feeds them in rank order, so every
+    rank's level and window stay identical. The level can therefore rise only between iterations."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._pending: list[tuple[list[int], list[bool]]] = []
+
+    def update(self, levels: np.ndarray, success: np.ndarray) -> bool:
+        levels = np.asarray(levels).reshape(-1)
+        success = np.asarray(success, dtype=bool).reshape(-1)
+        if levels.shape != success.shape:
+            raise ValueError(
+                f"levels and success must have the same length, got {levels.shape} and {success.shape}"
+            )
+        self._pending.append((levels.tolist(), success.tolist()))
+        return False
+
+    def sync(self) -> bool:
+        """Feed every rank's episodes since the last sync (a collective); True if the level rose."""
+        import torch.distributed as dist
+
+        mine = (sum((lv for lv, _ in self._pending), []), sum((s for _, s in self._pending), []))
+        self._pending = []
+        everyone: list = [None] * dist.get_world_size()
+        dist.all_gather_object(everyone, mine)
+        rose = False
+        for levels, success in everyone:
+            rose |= WaypointCurriculum.update(self, np.asarray(levels, dtype=np.int64), np.asarray(success, dtype=bool))
+        return rose

@@ -21,7 +21,7 @@ from tensordict import TensorDict
 from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as trj
 from lasmp.envs.base_env import BaseEnv, column_runs
-from lasmp.envs.curriculum import WaypointCurriculum
+from lasmp.envs.curriculum import SharedCurriculum, WaypointCurriculum
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.domain_rand import (
     Intrinsics,
@@ -79,8 +79,10 @@ class MovingPlatformEnv(BaseEnv):
         self.traj_ranges = trj.ranges_for_split(tc.split)
         self.traj_file = trj.load(tc.file) if tc.file else None
         self._file_cursor = 0
+        # a data-parallel run (torchrun) shares one curriculum across its ranks
+        shared = torch.distributed.is_available() and torch.distributed.is_initialized()
         self.curriculum = (
-            WaypointCurriculum(
+            (SharedCurriculum if shared and torch.distributed.get_world_size() > 1 else WaypointCurriculum)(
                 cc.level_min,
                 cc.level_max,
                 cc.promote_success_rate,
@@ -303,7 +305,7 @@ class MovingPlatformEnv(BaseEnv):
     TASK_STATE = ("action", "action_prev", "tau_prev", "q_dot_prev", "contact_prev", "t_air_s", "t_contact_s",
                   "traj", "traj_dev", "traj_level", "_file_cursor", "intrinsics", "x_imp", "rewards", "readout",
                   "last_state")  # fmt: skip
-    RUN_STATE_CLASSES = (StepState,)
+    RUN_STATE_CLASSES = (StepState, Readout)
 
     def _task_state(self) -> dict:
         return {"curriculum": self.curriculum.state_dict() if self.curriculum is not None else None}

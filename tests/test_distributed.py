@@ -1,0 +1,129 @@
+"""Data-parallel training with torchrun on a CPU: 2 gloo processes at tiny sizes."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+
+from lasmp.algo.checkpoint import read_checkpoint
+
+ROOT = Path(__file__).resolve().parents[1]
+WORKER = ROOT / "tests" / "helpers" / "dist_worker.py"
+TINY = {
+    "env": {"num_envs": 4},
+    "runner": {"max_iterations": 3, "save_interval": 1, "num_steps_per_env": 5},
+    "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
+    "algo": {"num_mini_batches": 2, "num_learning_epochs": 1, "precision": "float32"},
+    "torch_threads": 1,
+}
+
+
+def torchrun(*args, timeout=300, **kwargs) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2", *map(str, args)]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT, **kwargs)
+
+
+def run_worker(tmp_path: Path, cfg: dict, out: Path) -> list[dict]:
+    out.mkdir(parents=True, exist_ok=True)
+    done = torchrun(WORKER, json.dumps(cfg), out)
+    assert done.returncode == 0, (done.stdout + done.stderr)[-3000:]
+    return [torch.load(out / f"rank{k}.pt", weights_only=True) for k in (0, 1)], done.stdout
+
+
+def assert_same_parameters(ranks: list[dict]) -> None:
+    for net in ("actor", "critic"):
+        a, b = ranks[0][net], ranks[1][net]
+        assert a.keys() == b.keys()
+        for name in a:
+            assert torch.equal(a[name], b[name]), f"{net}.{name} differs between the ranks"
+    # the estimators' own optimizer (the ROA pass) stepped the same averaged gradients on both
+    for index, state in ranks[0]["estimators"].items():
+        for key, value in state.items():
+            assert torch.equal(value, ranks[1]["estimators"][index][key]), f"estimator Adam {index}.{key}"
+
+
+@pytest.fixture(scope="module")
+def two_ranks(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("dp")
+    cfg = {**TINY, "runner": {**TINY["runner"], "log_dir": str(tmp / "run")}}
+    ranks, stdout = run_worker(tmp, cfg, tmp / "out")
+    return tmp, cfg, ranks, stdout
+
+
+def test_two_processes_end_with_identical_parameters_and_normalizers(two_ranks):
+    _, _, ranks, _ = two_ranks
+    assert_same_parameters(ranks)
+    # the normalizers learned from both ranks' observations, and agree (counts include both)
+    counts = [r["actor"][k] for r in ranks for k in r["actor"] if k.endswith("count")]
+    assert counts and all(c > 0 for c in counts)
+    assert ranks[0]["iteration"] == ranks[1]["iteration"] == 2
+
+
+def test_each_rank_steps_its_own_envs_but_shares_one_curriculum(two_ranks):
+    _, _, ranks, _ = two_ranks
+    assert [r["seed"] for r in ranks] == [0, 1]  # seed + rank
+    assert ranks[0]["curriculum"] == ranks[1]["curriculum"]
+
+
+def test_rank_0_alone_logs_and_saves_every_ranks_running_state(two_ranks):
+    tmp, _, _, stdout = two_ranks
+    run = tmp / "run"
+    assert len(list(run.glob("events.out.tfevents.*"))) == 1
+    assert stdout.count("it 3/3") == 1  # one progress line per iteration, from rank 0
+    assert "x 2 processes" in stdout
+    data = read_checkpoint(run / "model_2.pt")
+    assert data["world_size"] == 2 and len(data["other_ranks"]) == 1
+    assert data["other_ranks"][0]["run"]["num_envs"] == 4
+
+
+def test_a_two_process_run_resumes_in_its_directory_with_identical_parameters(two_ranks):
+    tmp, cfg, _, _ = two_ranks
+    resumed = {**cfg, "resume": str(tmp / "run"), "runner": {**cfg["runner"], "max_iterations": 2}}
+    ranks, stdout = run_worker(tmp, resumed, tmp / "out_resumed")
+    assert "resumed from" in stdout and ranks[0]["iteration"] == ranks[1]["iteration"] == 4
+    assert_same_parameters(ranks)
+    assert (tmp / "run" / "model_4.pt").exists()
+
+
+def test_one_process_refuses_a_two_process_checkpoint_unless_told_to_restart_the_episodes(two_ranks, tmp_path):
+    tmp, _, _, _ = two_ranks
+    args = [f"resume={tmp / 'run' / 'model_2.pt'}", f"runner.log_dir={tmp_path / 'branch'}", "runner.max_iterations=1",
+            "algo.precision=float32", "torch_threads=1"]  # fmt: skip
+    out = subprocess.run([sys.executable, "train.py", *args], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 2 and "2 process(es), this job has 1" in out.stderr and "Traceback" not in out.stderr
+    again = subprocess.run([sys.executable, "train.py", *args, "resume_drop_env_state=true"], capture_output=True,
+                           text=True, cwd=ROOT, timeout=300)  # fmt: skip
+    assert again.returncode == 0, again.stderr[-2000:]
+
+
+def test_sigterm_to_the_job_stops_both_ranks_after_the_same_iteration_with_one_checkpoint(tmp_path):
+    run = tmp_path / "run"
+    args = ["train.py", "env.num_envs=4", "runner.max_iterations=500", "runner.save_interval=1000",
+            "runner.num_steps_per_env=5", "policy.actor_hidden_dims=[32,32,32]", "policy.critic_hidden_dims=[32,32]",
+            "algo.precision=float32", "torch_threads=1", f"runner.log_dir={run}"]  # fmt: skip
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2", *args]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT)
+    try:
+        deadline = time.monotonic() + 240
+        for line in proc.stdout:
+            if line.startswith("it 3/"):
+                break
+            assert time.monotonic() < deadline, "no third iteration in time"
+        proc.send_signal(signal.SIGTERM)
+        rest, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    saved = sorted(p.name for p in run.glob("model_*.pt"))
+    assert len(saved) == 2 and saved[0] == "model_0.pt", saved  # the first iteration's and the stop's
+    stopped = int(saved[1].removeprefix("model_").removesuffix(".pt"))
+    assert rest.count(f"stopped after iteration {stopped}") == 1 and "resume with" in rest
+    data = read_checkpoint(run / saved[1])
+    assert data["iter"] == stopped and len(data["other_ranks"]) == 1

@@ -9,6 +9,8 @@ and refuses unknown keys, naming them; `validate_train_cfg` then checks value ra
 
 from __future__ import annotations
 
+import importlib.util
+import os
 from dataclasses import dataclass, field, is_dataclass
 from typing import Any
 
@@ -29,6 +31,12 @@ ENV_SCHEMAS: dict[str, type[BaseEnvCfg]] = {
 }
 TASKS = tuple(ENV_SCHEMAS)
 PRECISIONS = ("auto", "float32", "bfloat16")  # algo.precision (lasmp/algo/precision.py)
+# runner.logger -> (rsl_rl's writer class, the package it imports, the extra that installs it); docs/logging.md
+LOGGERS: dict[str, tuple[str, str, str] | None] = {
+    "tensorboard": None,  # rsl_rl's default: torch's SummaryWriter
+    "wandb": ("WandbLogWriter", "wandb", "wandb"),
+    "neptune": ("NeptuneLogWriter", "neptune", "neptune"),
+}
 
 
 def env_schema(task: str) -> type[BaseEnvCfg]:
@@ -105,6 +113,11 @@ class RunnerCfg:
     check_for_nan: bool = True
     # stop when more than this fraction of an iteration's env-steps fault (the physics diverges); 1: never
     max_fault_fraction: float = 0.5
+    # where the scalars go (docs/logging.md): tensorboard | wandb | neptune. wandb and neptune write the
+    # TensorBoard files too; each needs its extra (pip install -e ".[wandb]" / ".[neptune]")
+    logger: str = "tensorboard"
+    wandb_project: str = "lasmp"  # the W&B project (the entity: $WANDB_USERNAME, else your default)
+    neptune_project: str = "lasmp"  # the Neptune project, under the workspace $NEPTUNE_USERNAME
 
 
 @dataclass
@@ -179,6 +192,7 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
         )
     if not 0 <= r.max_fault_fraction <= 1:
         raise ConfigError(f"runner.max_fault_fraction must be in [0, 1], got {r.max_fault_fraction}")
+    validate_logger(r)
     if cfg.env.num_envs * r.num_steps_per_env < a.num_mini_batches:
         raise ConfigError(
             f"env.num_envs * runner.num_steps_per_env ({cfg.env.num_envs * r.num_steps_per_env}) must be at least "
@@ -186,6 +200,40 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
         )
     if cfg.device != "cpu" and not cfg.device.startswith("cuda"):
         raise ConfigError(f"device must be cpu or cuda[:N], got {cfg.device!r}")
+
+
+def validate_logger(r: RunnerCfg) -> None:
+    """An unknown runner.logger, or one whose package or credentials are missing, fails here, at start-up,
+    not at the first iteration after the envs are built."""
+    if r.logger not in LOGGERS:
+        raise ConfigError(f"runner.logger must be one of {' | '.join(LOGGERS)}, got {r.logger!r}")
+    if LOGGERS[r.logger] is None:
+        return
+    _, package, extra = LOGGERS[r.logger]
+    project = getattr(r, f"{r.logger}_project")
+    if not project:
+        raise ConfigError(f"runner.{r.logger}_project must name a project for runner.logger={r.logger}")
+    if not _installed(package):
+        raise ConfigError(
+            f"runner.logger={r.logger} needs the {package} package, which is not installed: "
+            f'pip install -e ".[{extra}]"'
+        )
+    if r.logger == "neptune":  # rsl_rl's NeptuneLogWriter reads both
+        missing = [v for v in ("NEPTUNE_API_TOKEN", "NEPTUNE_USERNAME") if not os.environ.get(v)]
+        if missing:
+            raise ConfigError(f"runner.logger=neptune needs {' and '.join(missing)} set in the environment")
+
+
+def _installed(package: str) -> bool:
+    return importlib.util.find_spec(package) is not None
+
+
+def logger_cfg(r: RunnerCfg) -> str | dict[str, Any]:
+    """rsl_rl's `logger` entry: "tensorboard", or the dict form of its W&B / Neptune writer."""
+    spec = LOGGERS[r.logger]
+    if spec is None:
+        return r.logger
+    return {"class_name": spec[0], "project_name": getattr(r, f"{r.logger}_project")}
 
 
 def actor_groups(cfg: TrainCfg) -> list[str]:
@@ -205,6 +253,7 @@ def rsl_rl_cfg(cfg: TrainCfg) -> dict[str, Any]:
         "num_steps_per_env": r.num_steps_per_env,
         "save_interval": r.save_interval,
         "check_for_nan": r.check_for_nan,
+        "logger": logger_cfg(r),
         "obs_groups": {"actor": actor_groups(cfg), "critic": ["critic"]},
         "actor": {
             "class_name": ACTOR_CLASS,

@@ -224,6 +224,7 @@ def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | Non
         conf.device = "cpu"
         conf.resume = None
         conf.runner.log_dir = None
+        conf.runner.logger = "tensorboard"  # it logs nothing: a W&B or Neptune run plays without their package
         if trajectories is not None:
             conf.env.trajectory.file = str(trajectories)
         conf.env = OmegaConf.merge(conf.env, OmegaConf.create(env_overrides or {}))

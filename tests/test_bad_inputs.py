@@ -202,6 +202,7 @@ CONFIG_CASES = {
     "unknown precision": (["algo.precision=fp16"], "algo.precision"),
     "no steps per env": (["runner.num_steps_per_env=0"], "runner.num_steps_per_env"),
     "no save interval": (["runner.save_interval=0"], "runner.save_interval"),
+    "unknown logger": (["runner.logger=mlflow"], "runner.logger"),
     "negative iterations": (["runner.max_iterations=-1"], "max_iterations"),
     "fault fraction above 1": (["runner.max_fault_fraction=1.5"], "runner.max_fault_fraction"),
     "negative fault fraction": (["runner.max_fault_fraction=-0.1"], "runner.max_fault_fraction"),

@@ -66,7 +66,7 @@ def test_suite_overrides_reach_the_env_config():
     cfg = build("close")
     assert cfg.trajectory.duration_s == 20.0 and cfg.trajectory.split == "test"  # merged, not replaced
     assert cfg.platform.velocity_feedforward and cfg.platform.omega_n_rad_s == pytest.approx(25.13)
-    assert build("paper").platform.omega_n_rad_s == 1.0
+    assert build("paper").platform.omega_n_rad_s == MovingPlatformCfg().platform.omega_n_rad_s  # the default
     with pytest.raises(ValueError, match="unknown platform drive 'stiff'"):
         rm.env_overrides(20.0, "stiff")
 

@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -127,3 +128,33 @@ def test_sigterm_to_the_job_stops_both_ranks_after_the_same_iteration_with_one_c
     assert rest.count(f"stopped after iteration {stopped}") == 1 and "resume with" in rest
     data = read_checkpoint(run / saved[1])
     assert data["iter"] == stopped and len(data["other_ranks"]) == 1
+
+
+def _curriculum_rank(rank: int, port: int, out: str) -> None:
+    import torch.distributed as dist
+
+    from lasmp.envs.curriculum import SharedCurriculum
+
+    dist.init_process_group("gloo", init_method=f"tcp://127.0.0.1:{port}", rank=rank, world_size=2)
+    c = SharedCurriculum(level_min=5, level_max=6, promote_success_rate=0.8, window_episodes=10)
+    # rank 0 succeeds in all of its 6 episodes, rank 1 in 2 of 4: 8 of 10 over both ranks promotes,
+    # though neither rank alone has a full window
+    ok = [True] * 6 if rank == 0 else [True, True, False, False]
+    assert c.update(np.full(len(ok), 5), np.array(ok)) is False and c.level == 5  # collected, not fed
+    rose = c.sync()
+    torch.save({"rose": rose, "state": c.state_dict()}, f"{out}/curriculum{rank}.pt")
+    dist.destroy_process_group()
+
+
+def test_the_shared_curriculum_promotes_on_the_success_rate_over_all_ranks_episodes(tmp_path):
+    import socket
+
+    import torch.multiprocessing as mp
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    mp.spawn(_curriculum_rank, args=(port, str(tmp_path)), nprocs=2, join=True)
+    states = [torch.load(tmp_path / f"curriculum{k}.pt", weights_only=True) for k in (0, 1)]
+    assert states[0] == states[1]
+    assert states[0]["rose"] and states[0]["state"] == {"level": 6, "window": []}

@@ -69,14 +69,20 @@ class WaypointCurriculum:
             levels[replay] = rng.integers(self.level_min, self._level, size=int(replay.sum()))
         return levels
 
-    def update(self, levels: np.ndarray, success: np.ndarray) -> bool:
-        """Feed finished episodes (their N and success flag); True if the level rose."""
+    @staticmethod
+    def _episodes(levels, success) -> tuple[np.ndarray, np.ndarray]:
+        """Finished episodes' N and success flags as flat arrays of one length."""
         levels = np.asarray(levels).reshape(-1)
         success = np.asarray(success, dtype=bool).reshape(-1)
         if levels.shape != success.shape:
             raise ValueError(
                 f"levels and success must have the same length, got {levels.shape} and {success.shape}"
             )
+        return levels, success
+
+    def update(self, levels: np.ndarray, success: np.ndarray) -> bool:
+        """Feed finished episodes (their N and success flag); True if the level rose."""
+        levels, success = self._episodes(levels, success)
         self._window.extend(success[levels == self._level].tolist())
         if self._level >= self.level_max or len(self._window) < self.window_episodes:
             return False
@@ -133,12 +139,7 @@ class SharedCurriculum(WaypointCurriculum):
         self._pending: list[tuple[list[int], list[bool]]] = []
 
     def update(self, levels: np.ndarray, success: np.ndarray) -> bool:
-        levels = np.asarray(levels).reshape(-1)
-        success = np.asarray(success, dtype=bool).reshape(-1)
-        if levels.shape != success.shape:
-            raise ValueError(
-                f"levels and success must have the same length, got {levels.shape} and {success.shape}"
-            )
+        levels, success = self._episodes(levels, success)
         self._pending.append((levels.tolist(), success.tolist()))
         return False
 

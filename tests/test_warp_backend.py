@@ -30,6 +30,11 @@ wp.config.quiet = True  # no line per kernel module loaded
 
 SIM = SimCfg()
 PLATFORM = PlatformCfg()
+# the step-by-step parity test compares the two solvers where both converge within their tolerance:
+# MuJoCo's pyramidal cone without no-slip passes. With the default elliptic cone and no-slip passes
+# the solver stops at its iteration limit, and relaxing C MuJoCo's tolerance no longer measures how
+# far the backends may differ; the benchmark-level agreement (tests/test_warp_env.py) covers those.
+PARITY_SIM = SimCfg(cone="pyramidal", noslip_iterations=0)
 POLICY_DT_S = SIM.dt_s * SIM.decimation
 
 
@@ -134,15 +139,16 @@ def test_parity_with_cpu_backend(model, ix):
       and velocity sensors. Measured: 6e-7 and 2e-5; the stance is servo- and contact-damped, so
       rounding errors of ~3e-8 per substep don't grow;
     - plus what the solver tolerance itself is worth in that env, measured here as how far C MuJoCo
-      moves when its own tolerance is relaxed to 1e-6. Where the solver converges early (envs 0, 2)
-      that is exactly 0; env 1 slips (foot friction 0.5 below the platform's 1.0 on the swaying
-      platform), its friction forces converge slowly, and C moves by ~2e-3 m against MuJoCo Warp's
-      ~6e-4 m from C.
+      moves when its own tolerance is relaxed to 1e-6. Since the joints have the published A1's
+      friction losses, the solver converges slowly in every env (before them it stopped early in
+      envs 0 and 2, and this slack was 0 there); env 1 also slips (foot friction 0.5 below the
+      platform's 1.0 on the swaying platform).
     Foot-contact flags agree exactly: the feet stay planted, far from a make/break threshold."""
     n = 3
-    loose = build_model(PLATFORM, SIM)
+    loose = build_model(PLATFORM, PARITY_SIM)
     loose.opt.tolerance = 1e-6  # MuJoCo Warp's floor (put_model raises smaller tolerances to it)
-    warp_sim = WarpSim(model, n, SIM, "cpu")
+    model = build_model(PLATFORM, PARITY_SIM)
+    warp_sim = WarpSim(model, n, PARITY_SIM, "cpu")
     cpu_sim, cpu_loose = CpuBatchSim(model, n, num_threads=1), CpuBatchSim(loose, n, num_threads=1)
     sims = (warp_sim, cpu_sim, cpu_loose)
     drive = PlatformDrive(model)
@@ -178,7 +184,6 @@ def test_parity_with_cpu_backend(model, ix):
     print(f"warp vs C per env: {err}; C tolerance 1e-6 vs 1e-8: {slack}")
     assert (err["pos"] <= 1e-5 + slack["pos"]).all(), (err, slack)
     assert (err["vel"] <= 5e-4 + slack["vel"]).all(), (err, slack)
-    assert (slack["pos"][[0, 2]] == 0).all()  # the floor alone bounds envs 0 and 2 (as the docstring says)
     plf = [model.joint(j).qposadr[0] for j in PLATFORM_JOINTS]
     assert cpu_sim.qpos[:, plf].abs().max() > 0.01  # the platform did move
     assert foot_contacts(cpu_sim, ix).all()

@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import torch
 
-from lasmp.play import load_deploy_policy
+from lasmp.deploy import load_deploy_env
 
 
 def main(argv=None) -> int:
@@ -23,7 +23,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    env, policy, _ = load_deploy_policy(args.checkpoint, num_envs=args.num_envs, seed=args.seed)
+    env, policy, _, _ = load_deploy_env(args.checkpoint, num_envs=args.num_envs, seed=args.seed)
     obs = env.reset()[0]
     n = env.num_envs
     alive = np.ones(n, bool)

@@ -25,13 +25,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from lasmp.deploy import load_deploy_env
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
 from lasmp.eval.real_motion import suite as rm
 from lasmp.eval.real_motion.motion import Motion, time_grid, to_trajectories
 from lasmp.modules.obs_groups import GYRO_Z_COL
 from lasmp.modules.policy import alignment_from_estimates
-from lasmp.play import load_deploy_policy
 
 N_CONTACTS = 4  # x_exp = [contacts (4), v_body_b (3), v_plf_b (3), omega_plf_b (3)]
 MODES = {
@@ -51,7 +51,7 @@ def collision_rate(checkpoint: str, path: str, duration_s: float | None, n: int,
     """Share of the n envs' first episodes that end in a collision or fall; duration_s None: the
     trajectory file is benchmark episodes, played with the env's own episode length and drive."""
     overrides = BENCHMARK_ENV if duration_s is None else rm.env_overrides(duration_s, "close")
-    env, pol, _ = load_deploy_policy(checkpoint, num_envs=n, seed=seed, trajectories=path, env_overrides=overrides)
+    env, pol, _, _ = load_deploy_env(checkpoint, num_envs=n, seed=seed, trajectories=path, env_overrides=overrides)
     estimated = pol._estimated_inputs
     current = {}
 

@@ -25,8 +25,8 @@ from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
-from lasmp.train import make_runner, to_train_cfg
-from lasmp.train_cfg import register_configs
+from lasmp.train import make_runner
+from lasmp.train_cfg import register_configs, to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -20,8 +20,6 @@ needs a display (DISPLAY or WAYLAND_DISPLAY).
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import json
 import shutil
 import sys
@@ -29,10 +27,10 @@ from pathlib import Path
 
 import torch
 
-from lasmp.algo.checkpoint import CheckpointError, checkpoint_cfg, read_checkpoint
-from lasmp.algo.runner import LasmpRunner
+from lasmp.algo.checkpoint import CheckpointError
 from lasmp.atomic import atomic_open, atomic_write_with
 from lasmp.config import ConfigError
+from lasmp.deploy import load_deploy_env
 from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.modules.export import deploy_metadata, metadata_props
 from lasmp.render.renderer import (
@@ -45,46 +43,6 @@ from lasmp.render.renderer import (
     snapshot_steps,
 )
 from lasmp.render.viewer import Viewer, has_display
-from lasmp.train import make_env, seed_everything
-from lasmp.train_cfg import rsl_rl_cfg
-
-# ---------------------------------------------------------------------------------------------
-# Loading
-# ---------------------------------------------------------------------------------------------
-# no optimizer needed, and the env keeps its own running state (its size may differ from training's)
-DEPLOY_LOAD = {"actor": True, "critic": True, "optimizer": False, "iteration": True, "env_run_state": False}
-
-
-def load_deploy_policy(path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None,
-                       env_overrides: dict | None = None):  # fmt: skip
-    """(env, policy, cfg): the checkpoint's env and its actor in deployment mode (eval, estimators only).
-
-    `path` is a checkpoint file or a run directory (its latest model_<N>.pt). Raises CheckpointError
-    for a missing, unreadable or mismatched checkpoint. The env is reset after loading, so its first
-    episodes already use the checkpoint's curriculum state.
-    """
-    data = read_checkpoint(path)
-    cfg = checkpoint_cfg(data, num_envs, seed, trajectories, env_overrides)
-    seed_everything(cfg.seed)
-    env = make_env(cfg)
-    with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl prints the networks
-        runner = LasmpRunner(env, rsl_rl_cfg(cfg), log_dir=None, device="cpu")
-    try:
-        runner.load(data, load_cfg=DEPLOY_LOAD)
-    except CheckpointError:
-        raise
-    except RuntimeError as err:  # state-dict shape mismatch: the config does not fit the weights
-        raise CheckpointError(f"checkpoint {data['path']} does not fit its own config: {err}") from err
-    policy = runner.alg.get_policy()
-    policy.deploy = True
-    policy.eval()
-    env.reset()
-    return env, policy, cfg
-
-
-def obs_window(obs) -> torch.Tensor:
-    """(n, H+1, D) = [o_t, o_{t-1}, ..., o_{t-H}]: the deployable policy's only input."""
-    return torch.cat([obs["policy"].unsqueeze(1), obs["history"]], dim=1)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -93,7 +51,7 @@ def obs_window(obs) -> torch.Tensor:
 def export_policy(policy, fmt: str, out_dir: str | Path, metadata: dict | None = None) -> Path:
     """Write the deployable policy (input obs_window (1, H+1, D), output actions) as ONNX or TorchScript.
 
-    With `metadata` (`export_metadata`), the file carries it (ONNX: `metadata_props`, each value
+    With `metadata` (`lasmp.modules.export.deploy_metadata`), the file carries it (ONNX: `metadata_props`, each value
     JSON-encoded; TorchScript: the extra file `policy.json`) and `policy.json` is written beside it.
     """
     out_dir = Path(out_dir)
@@ -137,13 +95,6 @@ def export_policy(policy, fmt: str, out_dir: str | Path, metadata: dict | None =
         with atomic_open(out_dir / "policy.json", "w") as f:
             f.write("{\n" + ",\n".join(lines) + "\n}\n")
     return path
-
-
-def export_metadata(policy, cfg, checkpoint) -> dict:
-    """The deployment metadata (`lasmp.modules.export.deploy_metadata`) of `policy`, loaded from
-    `checkpoint` (a file or a run directory) with config `cfg`."""
-    data = read_checkpoint(checkpoint)
-    return deploy_metadata(policy, cfg, data["iter"], Path(data["path"]).name)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -275,9 +226,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.scenario:
             trajectories, overrides = scenario_file(args.scenario)
         try:
-            env, policy, cfg = load_deploy_policy(
-                args.checkpoint, args.num_envs, args.seed, trajectories, overrides
-            )
+            env, policy, cfg, data = load_deploy_env(args.checkpoint, args.num_envs, args.seed, trajectories, overrides)
         finally:
             if args.scenario:  # the env holds the motion in memory; the file was only the way in
                 shutil.rmtree(Path(trajectories).parent, ignore_errors=True)
@@ -290,7 +239,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
     if args.export:
-        path = export_policy(policy, args.export, args.out, export_metadata(policy, cfg, args.checkpoint))
+        metadata = deploy_metadata(policy, cfg, data["iter"], Path(data["path"]).name)
+        path = export_policy(policy, args.export, args.out, metadata)
         sidecar = path.parent / "policy.json"
         print(f"exported {args.export} policy to {path} (metadata in {sidecar})", flush=True)
 

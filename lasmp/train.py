@@ -17,7 +17,6 @@ import datetime
 import os
 import re
 import sys
-from dataclasses import is_dataclass
 from pathlib import Path
 
 import torch
@@ -27,10 +26,10 @@ from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import CheckpointError, check_finite, is_policy_only, read_checkpoint
 from lasmp.algo.runner import LasmpRunner, TrainingFaulted, TrainingInterrupted
 from lasmp.atomic import atomic_open
-from lasmp.config import ConfigError, build_env_cfg
+from lasmp.config import ConfigError
 from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.rundir import RunDirError, checkpoints, claim, describe, run_files
-from lasmp.train_cfg import TrainCfg, env_schema, rsl_rl_cfg, validate_train_cfg
+from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, to_train_cfg
 
 CFG_DIR = Path(__file__).resolve().parents[1] / "cfg"
 
@@ -64,18 +63,6 @@ def make_env(cfg: TrainCfg):
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
     return MovingPlatformEnv(cfg.env, device=device)
-
-
-def to_train_cfg(cfg) -> TrainCfg:
-    """An OmegaConf/Hydra config (or a TrainCfg) as a validated TrainCfg, its env built with the
-    task's schema and env.seed = seed."""
-    if not isinstance(cfg, TrainCfg):
-        cfg = OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(TrainCfg), cfg))
-    if not is_dataclass(cfg.env):
-        cfg.env = build_env_cfg(dict(cfg.env or {}), schema=env_schema(cfg.task))
-    cfg.env.seed = cfg.seed
-    validate_train_cfg(cfg)
-    return cfg
 
 
 def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunner:

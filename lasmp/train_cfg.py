@@ -17,7 +17,7 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf
 
-from lasmp.config import BaseEnvCfg, ConfigError, check_known_keys
+from lasmp.config import BaseEnvCfg, ConfigError, build_env_cfg, check_known_keys
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.rough_static.cfg import RoughStaticCfg
 
@@ -279,3 +279,15 @@ def rsl_rl_cfg(cfg: TrainCfg) -> dict[str, Any]:
         "algorithm": {"class_name": ALGORITHM_CLASS, **OmegaConf.to_container(OmegaConf.structured(a))},
         "multi_gpu": None,
     }
+
+
+def to_train_cfg(cfg) -> TrainCfg:
+    """An OmegaConf/Hydra config (or a TrainCfg) as a validated TrainCfg, its env built with the
+    task's schema and env.seed = seed."""
+    if not isinstance(cfg, TrainCfg):
+        cfg = OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(TrainCfg), cfg))
+    if not is_dataclass(cfg.env):
+        cfg.env = build_env_cfg(dict(cfg.env or {}), schema=env_schema(cfg.task))
+    cfg.env.seed = cfg.seed
+    validate_train_cfg(cfg)
+    return cfg

@@ -18,8 +18,8 @@ from tensordict import TensorDict
 
 from lasmp.algo.checkpoint import CHECKPOINT_FORMAT, CheckpointError, convert_trusted, read_checkpoint
 from lasmp.plainstate import PlainStateError, pack, unpack
-from lasmp.train import make_runner, to_train_cfg, train
-from lasmp.train_cfg import register_configs
+from lasmp.train import make_runner, train
+from lasmp.train_cfg import register_configs, to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
 register_configs()

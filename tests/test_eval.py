@@ -287,7 +287,8 @@ def test_oracle_command_points_to_the_platform_centre_in_the_heading_frame():
 
 
 def test_evaluate_rs_controllers_end_to_end(tmp_path):
-    from lasmp.train import to_train_cfg, train
+    from lasmp.train import train
+    from lasmp.train_cfg import to_train_cfg
 
     cfg = to_train_cfg(OmegaConf.create({
         "task": "rough_static", "env": {"num_envs": 4}, "torch_threads": 1,
@@ -310,7 +311,8 @@ def test_evaluate_rs_controllers_end_to_end(tmp_path):
 
 
 def test_evaluate_lasmp_checkpoint_reports_estimator_accuracy_and_plots(tmp_path):
-    from lasmp.train import to_train_cfg, train
+    from lasmp.train import train
+    from lasmp.train_cfg import to_train_cfg
 
     cfg = to_train_cfg(OmegaConf.create({
         "env": {"num_envs": 4}, "torch_threads": 1, "policy": {"actor_hidden_dims": [32, 32, 32]},

@@ -13,9 +13,10 @@ import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo.checkpoint import read_checkpoint
+from lasmp.deploy import load_deploy_env, obs_window
 from lasmp.envs.robot import OBS_DIM
 from lasmp.modules.export import METADATA_VERSION, read_onnx_metadata
-from lasmp.play import load_deploy_policy, main, obs_window
+from lasmp.play import main
 from lasmp.robots import a1
 from lasmp.train import train
 
@@ -59,7 +60,7 @@ def meta(exported) -> dict:
 
 @pytest.fixture(scope="module")
 def loaded(run_dir):
-    return load_deploy_policy(run_dir, num_envs=1, seed=5)
+    return load_deploy_env(run_dir, num_envs=1, seed=5)
 
 
 def recorded_window(env, policy, steps: int = 8):
@@ -116,7 +117,7 @@ def test_obs_layout_slots_are_contiguous_and_sum_to_the_observation_size(meta):
 
 
 def test_obs_layout_describes_what_the_env_observes(loaded, meta):
-    env, _, _ = loaded
+    env, _, _, _ = loaded
     action = torch.linspace(-1.0, 1.0, 12).unsqueeze(0)
     with torch.inference_mode():
         obs = env.step(action)[0]
@@ -135,7 +136,7 @@ def test_obs_layout_describes_what_the_env_observes(loaded, meta):
 
 
 def test_action_to_target_and_pd_gains_are_those_the_simulated_robot_uses(loaded, meta):
-    env, _, _ = loaded
+    env, _, _, _ = loaded
     action = torch.full((1, 12), 0.5)
     action[0, :3] = 3 * meta["action_clip"]  # beyond the clip
     with torch.inference_mode():
@@ -153,7 +154,7 @@ def test_action_to_target_and_pd_gains_are_those_the_simulated_robot_uses(loaded
 
 
 def test_normalizer_is_folded_into_the_graph_and_given_for_reference(loaded, meta):
-    _, policy, _ = loaded
+    _, policy, _, _ = loaded
     norm = meta["obs_normalization"]
     assert norm["folded_into_graph"] is True
     np.testing.assert_allclose(norm["mean"], policy.obs_normalizer._mean[0, :OBS_DIM].numpy(), rtol=1e-6)
@@ -167,7 +168,7 @@ def test_onnx_model_on_a_recorded_window_matches_the_torch_policy(exported, load
     (inp,), (out,) = sess.get_inputs(), sess.get_outputs()
     assert (inp.name, list(inp.shape)) == (meta["input_name"], meta["input_shape"])
     assert (out.name, list(out.shape)) == (meta["output_name"], meta["output_shape"])
-    env, policy, _ = loaded
+    env, policy, _, _ = loaded
     obs, window = recorded_window(env, policy)
     assert window.shape == tuple(meta["input_shape"])
     assert torch.equal(window[0, 0], obs["policy"][0]) and torch.equal(window[0, 1], obs["history"][0, 0])
@@ -188,7 +189,7 @@ def test_torchscript_export_still_works_and_carries_the_metadata(run_dir, loaded
     extra = {"policy.json": ""}
     scripted = torch.jit.load(str(tmp_path / "policy.pt"), _extra_files=extra)
     assert json.loads(extra["policy.json"]) == json.loads((tmp_path / "policy.json").read_text()) == meta
-    env, policy, _ = loaded
+    env, policy, _, _ = loaded
     obs, window = recorded_window(env, policy, steps=3)
     with torch.inference_mode():
         torch.testing.assert_close(scripted(window), policy(obs), rtol=0, atol=1e-5)

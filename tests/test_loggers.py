@@ -21,8 +21,8 @@ import lasmp.train_cfg
 from lasmp.algo.checkpoint import CheckpointError, checkpoint_cfg, read_checkpoint
 from lasmp.config import ConfigError
 from lasmp.eval.curves import read_scalars
-from lasmp.train import to_train_cfg, train
-from lasmp.train_cfg import register_configs, rsl_rl_cfg
+from lasmp.train import train
+from lasmp.train_cfg import register_configs, rsl_rl_cfg, to_train_cfg
 
 register_configs()
 # scalars OneLineLogger writes every iteration (the episode extras come on top)

@@ -12,7 +12,8 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
-from lasmp.play import load_deploy_policy, main, obs_window
+from lasmp.deploy import load_deploy_env, obs_window
+from lasmp.play import main
 from lasmp.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,7 +43,7 @@ def run_dir(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def loaded(run_dir):
-    return load_deploy_policy(run_dir, num_envs=1, seed=3)
+    return load_deploy_env(run_dir, num_envs=1, seed=3)
 
 
 def test_play_runs_and_prints_summary(run_dir, capsys):
@@ -53,7 +54,7 @@ def test_play_runs_and_prints_summary(run_dir, capsys):
 
 
 def test_policy_from_checkpoint_config_and_deploy_ignores_privileged(loaded):
-    env, policy, cfg = loaded
+    env, policy, cfg, _ = loaded
     assert cfg.policy.latent_dim == LATENT_DIM and cfg.env.num_envs == 1 and cfg.seed == 3
     assert policy.latent_dim == LATENT_DIM and policy.deploy and not policy.training
     assert policy.mlp[0].out_features == 32  # the checkpoint's hidden dims, not today's 512
@@ -77,7 +78,7 @@ def test_export_onnx_matches_torch(run_dir, loaded, tmp_path, capsys):
     assert sorted(os.listdir(tmp_path)) == ["policy.json", "policy.onnx"]  # the model and its sidecar, no temp file
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     assert [i.name for i in sess.get_inputs()] == ["obs_window"]
-    env, policy, _ = loaded
+    env, policy, _, _ = loaded
     with torch.inference_mode():
         obs, *_ = env.step(torch.zeros(1, env.num_actions))  # a history that is not all o_0
         expected = policy(obs).numpy()
@@ -90,7 +91,7 @@ def test_export_jit_matches_torch(run_dir, loaded, tmp_path):
         main(["--checkpoint", str(run_dir), "--steps", "0", "--export", "jit", "--out", str(tmp_path)]) == 0
     )
     scripted = torch.jit.load(str(tmp_path / "policy.pt"))
-    env, policy, _ = loaded
+    env, policy, _, _ = loaded
     with torch.inference_mode():
         obs = env.get_observations()
         torch.testing.assert_close(scripted(obs_window(obs)), policy(obs), atol=1e-5, rtol=1e-5)
@@ -164,13 +165,14 @@ def test_export_needs_out(run_dir):
 
 
 def test_benchmark_episode_plays_that_trajectory_and_robot(run_dir, tmp_path, capsys):
+    from lasmp.deploy import load_deploy_env
     from lasmp.eval import benchmark as bm
-    from lasmp.play import load_deploy_policy, use_benchmark_episodes
+    from lasmp.play import use_benchmark_episodes
 
     bench_path = tmp_path / "bench.npz"
     bench = bm.generate(num_trajectories=6, num_robots=2, seed=0)
     bm.save(bench_path, bench)
-    env, _, _ = load_deploy_policy(str(run_dir), num_envs=1)
+    env, _, _, _ = load_deploy_env(str(run_dir), num_envs=1)
     use_benchmark_episodes(env, str(bench_path), 3)
     pose_env, _, _ = env.traj.evaluate(np.array([2.0]))
     pose_bench, _, _ = bench.trajectories.evaluate(np.array([2.0]), rows=[3])
@@ -186,14 +188,14 @@ def test_scenario_plays_the_real_motion_on_the_close_drive(run_dir, capsys, monk
     from lasmp.eval.real_motion import suite as rm
 
     seen = {}
-    real_load = play.load_deploy_policy
+    real_load = play.load_deploy_env
 
     def spy(*args):
         out = real_load(*args)
         seen.update(env=out[0], file=args[3])
         return out
 
-    monkeypatch.setattr(play, "load_deploy_policy", spy)
+    monkeypatch.setattr(play, "load_deploy_env", spy)
     assert main(["--checkpoint", str(run_dir), "--scenario", "lift_up", "--steps", "3"]) == 0
     assert "played 3 steps x 1 envs" in capsys.readouterr().out
     env = seen["env"]
@@ -212,8 +214,9 @@ def test_scenario_plays_the_real_motion_on_the_close_drive(run_dir, capsys, monk
 def test_policy_checkpoint_is_small_plays_the_same_and_refuses_to_resume(run_dir, tmp_path):
     from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint, read_checkpoint
     from lasmp.algo.checkpoint import main as ckpt_main
-    from lasmp.play import load_deploy_policy
-    from lasmp.train import make_runner, to_train_cfg
+    from lasmp.deploy import load_deploy_env
+    from lasmp.train import make_runner
+    from lasmp.train_cfg import to_train_cfg
 
     full = latest_checkpoint(run_dir)
     slim = tmp_path / "policy.pt"
@@ -221,8 +224,8 @@ def test_policy_checkpoint_is_small_plays_the_same_and_refuses_to_resume(run_dir
     data = read_checkpoint(slim)
     assert data["kind"] == "policy" and "optimizer_state_dict" not in data
     assert "estimator_optimizer_state_dict" not in data and slim.stat().st_size < 0.6 * full.stat().st_size
-    env_a, pol_a, _ = load_deploy_policy(full, num_envs=2, seed=1)
-    env_b, pol_b, _ = load_deploy_policy(slim, num_envs=2, seed=1)
+    env_a, pol_a, _, _ = load_deploy_env(full, num_envs=2, seed=1)
+    env_b, pol_b, _, _ = load_deploy_env(slim, num_envs=2, seed=1)
     with torch.inference_mode():
         for _ in range(5):
             act_a, act_b = pol_a(env_a.get_observations()), pol_b(env_b.get_observations())

@@ -10,7 +10,8 @@ from omegaconf import OmegaConf
 from lasmp.algo import precision as prec
 from lasmp.algo.precision import cpu_has_fast_bf16, resolve_precision
 from lasmp.config import ConfigError
-from lasmp.train import make_runner, to_train_cfg, train
+from lasmp.train import make_runner, train
+from lasmp.train_cfg import to_train_cfg
 
 AVX2_ONLY = """processor\t: 0
 vendor_id\t: AuthenticAMD

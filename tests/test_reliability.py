@@ -19,7 +19,8 @@ from omegaconf import OmegaConf
 
 from lasmp.algo.checkpoint import atomic_torch_save, read_checkpoint
 from lasmp.plainstate import unpack
-from lasmp.train import make_runner, to_train_cfg, train
+from lasmp.train import make_runner, train
+from lasmp.train_cfg import to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from lasmp.algo.checkpoint import is_policy_only, read_checkpoint
-from lasmp.play import load_deploy_policy, obs_window
+from lasmp.deploy import load_deploy_env, obs_window
 
 POLICIES = Path(__file__).resolve().parents[1] / "resources" / "policies"
 CHECKPOINT = POLICIES / "lasmp_a1.pt"
@@ -26,7 +26,7 @@ def test_shipped_checkpoint_is_a_small_lasmp_policy_checkpoint():
 
 
 def test_shipped_policy_runs_in_deployment_mode_without_privileged_inputs():
-    env, policy, _ = load_deploy_policy(CHECKPOINT, num_envs=2, seed=0)
+    env, policy, _, _ = load_deploy_env(CHECKPOINT, num_envs=2, seed=0)
     assert policy.deploy
     obs = env.get_observations()
     with torch.inference_mode():
@@ -43,7 +43,7 @@ def test_shipped_policy_runs_in_deployment_mode_without_privileged_inputs():
 
 def test_shipped_onnx_export_matches_the_checkpoint():
     ort = pytest.importorskip("onnxruntime")
-    env, policy, _ = load_deploy_policy(CHECKPOINT, num_envs=1, seed=1)
+    env, policy, _, _ = load_deploy_env(CHECKPOINT, num_envs=1, seed=1)
     sess = ort.InferenceSession(str(ONNX), providers=["CPUExecutionProvider"])
     obs = env.get_observations()
     with torch.inference_mode():

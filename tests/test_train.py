@@ -17,8 +17,8 @@ from omegaconf import OmegaConf
 from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint, read_checkpoint
 from lasmp.config import ConfigError
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
-from lasmp.train import make_runner, to_train_cfg, train
-from lasmp.train_cfg import register_configs
+from lasmp.train import make_runner, train
+from lasmp.train_cfg import register_configs, to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
 register_configs()

@@ -213,7 +213,7 @@ def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | Non
     given nested env overrides) changed; CheckpointError if today's code cannot rebuild it."""
     from omegaconf import OmegaConf
 
-    from lasmp.train import to_train_cfg  # lasmp.train imports the runner, which imports this module
+    from lasmp.train_cfg import to_train_cfg
 
     if not data.get("config"):
         raise CheckpointError(f"checkpoint {data['path']} carries no config to rebuild the policy from")

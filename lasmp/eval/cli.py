@@ -34,7 +34,8 @@ from pathlib import Path
 
 import torch
 
-from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint
+from lasmp.algo.checkpoint import CheckpointError, check_compatible, latest_checkpoint
+from lasmp.deploy import load_policy
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
 from lasmp.eval import episodes as ep
@@ -80,7 +81,6 @@ def load_or_make_benchmark(path: Path):
 def build(args, extra_env: dict | None = None):
     """(env, controller, policy with estimators or None, method name); `extra_env`: env overrides."""
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
-    from lasmp.play import load_deploy_policy
 
     n = min(args.batch_envs, args.num_trajectories)
     overrides = eval_env_overrides(n, args.seed, extra_env)
@@ -88,7 +88,8 @@ def build(args, extra_env: dict | None = None):
         env = MovingPlatformEnv(overrides)
         zeros = torch.zeros(n, env.num_actions)
         return env, (lambda obs: zeros), None, "stand_still"
-    _, policy, cfg = load_deploy_policy(args.checkpoint, num_envs=1, seed=args.seed)
+    deployed = load_policy(args.checkpoint, seed=args.seed)
+    policy, cfg = deployed.policy, deployed.cfg
     if args.controller in ("rs", "rs_oracle"):
         if cfg.task != "rough_static" or not policy.command_input:
             raise CheckpointError(f"--controller {args.controller} needs an R-S checkpoint (task=rough_static), "
@@ -107,6 +108,7 @@ def build(args, extra_env: dict | None = None):
             f"--checkpoint without --controller needs a moving_platform policy, got {cfg.task}"
         )
     env = MovingPlatformEnv(deep_merge(_asdict(cfg.env), overrides))
+    check_compatible(deployed.checkpoint, env)
     return env, (lambda obs: policy(obs)), policy, f"LAS-MP checkpoint {args.checkpoint} ({cfg.policy.name})"
 
 

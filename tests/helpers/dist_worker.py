@@ -14,7 +14,8 @@ from pathlib import Path
 import torch
 from omegaconf import OmegaConf
 
-from lasmp.train import to_train_cfg, train
+from lasmp.train import train
+from lasmp.train_cfg import to_train_cfg
 
 
 def main() -> None:

@@ -1,0 +1,94 @@
+"""A deployable policy from a checkpoint: what `play.py`, `evaluate.py` and the benchmarks run.
+
+A checkpoint is read once. The policy is the trained actor in deployment mode: its inputs are o_t
+and the history o^H only (the estimators replace the privileged groups), its actions the mean. It is
+built from the checkpoint's own config and observation layout, never from today's defaults and
+without an env; `load_deploy_env` adds an env of the checkpoint's task for tools that step one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from dataclasses import dataclass
+
+import torch
+from rsl_rl.utils import resolve_class, resolve_obs_groups
+from tensordict import TensorDict
+
+from lasmp.algo.checkpoint import (
+    CheckpointError,
+    check_compatible,
+    checkpoint_cfg,
+    read_checkpoint,
+    set_rng_state,
+)
+from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
+
+
+@dataclass
+class Deployed:
+    """A checkpoint's policy (deployment mode, eval), the config it was trained with, and the
+    checkpoint as read (`read_checkpoint`), for what else a tool takes from it."""
+
+    policy: torch.nn.Module
+    cfg: TrainCfg
+    checkpoint: dict
+
+
+def obs_window(obs) -> torch.Tensor:
+    """(n, H+1, D) = [o_t, o_{t-1}, ..., o_{t-H}]: the deployable policy's only input."""
+    return torch.cat([obs["policy"].unsqueeze(1), obs["history"]], dim=1)
+
+
+def build_policy(data: dict, cfg: TrainCfg) -> torch.nn.Module:
+    """The actor of checkpoint `data` with its weights, in deployment mode; CheckpointError if the
+    weights do not fit the actor its config describes."""
+    rsl = rsl_rl_cfg(cfg)
+    layout = data["obs_layout"]
+    obs = TensorDict({g: torch.zeros(1, *shape) for g, shape in layout.items()}, batch_size=[1])
+    actor_class, actor_cfg = resolve_class(dict(rsl["actor"]))
+    groups = resolve_obs_groups(obs, dict(rsl["obs_groups"]), ["actor", "critic"])
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl's models print themselves
+            policy = actor_class(obs, groups, "actor", int(data["num_actions"]), **actor_cfg)
+        policy.load_state_dict(data["actor_state_dict"])
+    except (RuntimeError, ValueError, KeyError, TypeError) as err:  # a shape mismatch, a missing key
+        raise CheckpointError(f"checkpoint {data['path']} does not fit its own config: {err}") from err
+    policy.deploy = True
+    policy.eval()
+    return policy
+
+
+def load_policy(path, seed: int = 0) -> Deployed:
+    """The deployable policy of `path`, a checkpoint file or a run directory (its latest
+    model_<N>.pt). CheckpointError for a missing, unreadable, hostile or mismatched checkpoint."""
+    data = read_checkpoint(path)
+    cfg = checkpoint_cfg(data, 1, seed)
+    return Deployed(build_policy(data, cfg), cfg, data)
+
+
+def load_deploy_env(path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None,
+                    env_overrides: dict | None = None):  # fmt: skip
+    """(env, policy, cfg, checkpoint): `load_policy` plus an env of the checkpoint's task with
+    `num_envs` envs (and a trajectory file, and nested env overrides). The env takes the
+    checkpoint's curriculum state and random state (not its envs' running state: its size may
+    differ) and is reset, so its first episodes already use the checkpoint's curriculum."""
+    from lasmp.train import make_env  # TEMP until the registry lands
+
+    data = read_checkpoint(path)
+    cfg = checkpoint_cfg(data, num_envs, seed, trajectories, env_overrides)
+    policy = build_policy(data, cfg)
+    torch.manual_seed(cfg.seed)
+    env = make_env(cfg)
+    check_compatible(data, env)
+    where = data["path"]
+    try:
+        if data.get("env_state"):
+            env.load_state_dict(data["env_state"], run=False)
+        if data.get("rng_state"):
+            set_rng_state(data["rng_state"], env.rng)
+    except (RuntimeError, ValueError, KeyError, TypeError, IndexError) as err:
+        raise CheckpointError(f"checkpoint {where}: its env or random state does not fit this env: {err}") from err
+    env.reset()
+    return env, policy, cfg, data

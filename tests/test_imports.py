@@ -1,0 +1,90 @@
+"""lasmp's modules form no import cycle, counting imports inside functions and the package
+`__init__` files an import runs (DESIGN: arrows point down, no two modules import each other)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "lasmp"
+
+
+def module_name(path: Path, package: Path) -> str:
+    parts = path.relative_to(package.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_graph(package: Path = PACKAGE) -> dict[str, set[str]]:
+    """module -> the package's modules it imports anywhere in its file, with the packages above them."""
+    root = package.name
+    files = {module_name(p, package): p for p in package.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in files.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                targets.update(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    base = ".".join(up + ([base] if base else []))
+                targets.add(base)
+                targets.update(f"{base}.{a.name}" for a in node.names if f"{base}.{a.name}" in files)
+        edges = set()
+        for target in targets:
+            if target.split(".")[0] != root:
+                continue
+            parts = target.split(".")
+            edges.update(".".join(parts[:i]) for i in range(2, len(parts) + 1) if ".".join(parts[:i]) in files)
+        edges.discard(name)
+        # a module's own package __init__ runs before it: that is not an import the module makes
+        graph[name] = {e for e in edges if not name.startswith(e + ".")}
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt) :] + [nxt]
+            if nxt not in state and (cycle := visit(nxt)):
+                return cycle
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (cycle := visit(node)):
+            return cycle
+    return None
+
+
+def test_the_checker_finds_a_cycle_it_is_given():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_the_graph_counts_imports_inside_functions_relative_imports_and_packages(tmp_path):
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "sub" / "__init__.py").write_text("from pkg import top\n")
+    (pkg / "sub" / "leaf.py").write_text("from . import other\n")
+    (pkg / "sub" / "other.py").write_text("")
+    (pkg / "top.py").write_text("def f():\n    import pkg.sub.leaf\n")
+    graph = import_graph(pkg)
+    assert graph["pkg.top"] == {"pkg.sub", "pkg.sub.leaf"}
+    assert graph["pkg.sub.leaf"] == {"pkg.sub.other"}
+    assert find_cycle(graph) == ["pkg.sub", "pkg.top", "pkg.sub"]
+
+
+def test_lasmp_has_no_import_cycle():
+    cycle = find_cycle(import_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)

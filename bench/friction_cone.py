@@ -171,6 +171,29 @@ class PlatformDrive:
             data.qvel[self.dof_adr] = v
 
 
+def tilt_scene(sim: SimCfg, what: str, mu: float):
+    """(model, data, platform body, contact geoms, tracked points) of the block or the standing robot;
+    the tracked points are a function of nothing that gives their world positions, (n, 3): the robot's
+    feet's centres, or the block's body."""
+    model = robot_model(sim, mu) if what == "robot" else block_model(sim, mu)
+    data = mujoco.MjData(model)
+    if what == "robot":
+        robot_stance(model, data)
+        geoms = [model.geom(f).id for f in a1.FOOT_NAMES]
+        sites = [model.site(f).id for f in a1.FOOT_NAMES]
+
+        def points():
+            return data.site_xpos[sites]
+    else:
+        block = model.body("block").id
+        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == block]
+
+        def points():
+            return data.xpos[[block]]
+
+    return model, data, model.body("platform").id, geoms, points
+
+
 def _platform_frame(data: mujoco.MjData, pid: int) -> tuple[np.ndarray, np.ndarray]:
     return data.xpos[pid].copy(), data.xmat[pid].reshape(3, 3).copy()
 
@@ -202,19 +225,10 @@ def slide_onset(
     max_factor: float = 1.3,
 ) -> dict:
     """Ramp the tilt until the block / robot slides (or topples, or the tilt passes max_factor atan mu)."""
-    sim = sim_cfg(setting)
     robot = what == "robot"
-    model = robot_model(sim, mu) if robot else block_model(sim, mu)
-    data = mujoco.MjData(model)
-    pid = model.body("platform").id
+    model, data, pid, geoms, points = tilt_scene(sim_cfg(setting), what, mu)
     if robot:
-        robot_stance(model, data)
-        points = [model.site(f).id for f in a1.FOOT_NAMES]  # the feet's centres
-        geoms = [model.geom(f).id for f in a1.FOOT_NAMES]
         trunk = model.body(a1.TRUNK_BODY_NAME).id
-    else:
-        block = model.body("block").id
-        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == block]
     drive = PlatformDrive(model, math.radians(azimuth_deg))
     dt = model.opt.timestep
     rate = math.radians(rate_deg_s)
@@ -247,7 +261,7 @@ def slide_onset(
         if t < ramp_from_s:
             continue
         x_p, r_p = _platform_frame(data, pid)
-        here = (data.site_xpos[points] if robot else data.xpos[[block]]) - x_p
+        here = points() - x_p
         here = here @ r_p  # platform frame, (n points, 3)
         trail.append(here)
         if len(trail) <= window:
@@ -306,16 +320,7 @@ def fixed_tilt_slip(
     point's slip along the surface (m; block: its body, robot: its four feet) over the hold and over
     its last second, and the feet's friction usage as the hold starts (see `friction_usage`)."""
     robot = what == "robot"
-    model = robot_model(sim, mu) if robot else block_model(sim, mu)
-    data = mujoco.MjData(model)
-    pid = model.body("platform").id
-    if robot:
-        robot_stance(model, data)
-        geoms = [model.geom(f).id for f in a1.FOOT_NAMES]
-        points = [model.site(f).id for f in a1.FOOT_NAMES]
-    else:
-        block = model.body("block").id
-        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == block]
+    model, data, pid, geoms, points = tilt_scene(sim, what, mu)
     drive = PlatformDrive(model, math.radians(azimuth_deg), kinematic=True)
     dt, theta = model.opt.timestep, math.radians(tilt_deg)
     mujoco.mj_forward(model, data)
@@ -327,7 +332,7 @@ def fixed_tilt_slip(
 
     def tracked():
         x_p, r_p = _platform_frame(data, pid)
-        return ((data.site_xpos[points] if robot else data.xpos[[block]]) - x_p) @ r_p
+        return (points() - x_p) @ r_p
 
     if robot:
         model.geom_condim[geoms] = 1

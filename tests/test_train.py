@@ -83,8 +83,10 @@ def test_ppo_update_leaves_estimators_alone_and_roa_moves_them(tmp_path):
 def test_iterations_on_the_estimates_follow_the_schedule_and_keep_ppo_off_the_estimators(tmp_path):
     runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 3, "estimate_rollout_start": 10}), None)
     alg, actor = runner.alg, runner.alg.get_policy()
-    assert [it for it in range(8, 20) if alg.rollout_on_estimates(it)] == [10, 13, 16, 19]
-    assert alg.rollout_on_estimates(13) and actor.act_on_estimates
+    assert [it for it in range(8, 20) if alg.acts_on_estimates(it)] == [10, 13, 16, 19]
+    assert alg.iteration == 0 and not actor.act_on_estimates
+    alg.iteration = 13
+    assert actor.act_on_estimates
     obs = runner.env.get_observations()
     with torch.inference_mode():
         on_estimates = actor.get_latent(obs).clone()
@@ -93,7 +95,7 @@ def test_iterations_on_the_estimates_follow_the_schedule_and_keep_ppo_off_the_es
         actor.deploy = False
         privileged = actor.get_latent(obs).clone()
     assert torch.equal(on_estimates, deployed) and not torch.equal(on_estimates, privileged)
-    alg.rollout_on_estimates(13)
+    alg.iteration = 13
     rollout(runner)
     before = params(actor)
     alg.update_roa = lambda: {}  # PPO's own update only, on the estimates
@@ -103,7 +105,7 @@ def test_iterations_on_the_estimates_follow_the_schedule_and_keep_ppo_off_the_es
     assert changed(before, actor, "mlp")
 
 
-def test_the_runner_sets_each_iterations_mode(tmp_path):
+def test_each_iteration_of_a_run_acts_as_the_schedule_says(tmp_path):
     runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 2, "estimate_rollout_start": 1}), None)
     modes = []
     real = runner.alg.update
@@ -115,6 +117,104 @@ def test_the_runner_sets_each_iterations_mode(tmp_path):
     runner.alg.update = spy
     runner.learn(4)
     assert modes == [False, True, False, True]  # iterations 0..3: on at 1 and 3
+    assert runner.alg.iteration == 4
+
+
+def _learner(tmp_path, algorithm=None, **over):
+    """A PPOROA on a tiny env, built as rsl_rl's runner builds it, without a runner or a logger."""
+    from lasmp.algo.ppo_roa import PPOROA
+    from lasmp.train import make_env
+    from lasmp.train_cfg import rsl_rl_cfg
+
+    cfg = tiny(tmp_path, **over)
+    env = make_env(cfg)
+    rsl = rsl_rl_cfg(cfg)
+    rsl["multi_gpu"] = None
+    if algorithm is not None:
+        rsl["algorithm"]["class_name"] = algorithm
+    alg = (algorithm or PPOROA).construct_algorithm(env.get_observations(), env, rsl, cfg.device)
+    return alg, env, rsl["num_steps_per_env"]
+
+
+def _learner_rollout(alg, env, steps):
+    obs = env.get_observations()
+    with torch.inference_mode():
+        for _ in range(steps):
+            obs, rew, dones, extras = env.step(alg.act(obs))
+            alg.process_env_step(obs, rew, dones, extras)
+        alg.compute_returns(obs)
+
+
+def test_the_learner_counts_its_iterations_and_acts_on_the_estimates_on_schedule_on_its_own(tmp_path):
+    algo = {"estimate_rollout_every": 2, "estimate_rollout_start": 1}
+    alg, env, steps = _learner(tmp_path, algo=algo)
+    actor = alg.get_policy()
+    modes, logged = [], []
+    for _ in range(4):
+        modes.append(actor.act_on_estimates)
+        _learner_rollout(alg, env, steps)
+        logged.append(alg.update()["Policy/acts_on_estimates"])
+    assert alg.iteration == 4
+    assert modes == [False, True, False, True] and logged == [0.0, 1.0, 0.0, 1.0]  # on at 1 and 3
+    assert not actor.act_on_estimates  # iteration 4 comes next: off
+    # a checkpoint of it: `iter` is the last completed iteration (3); a learner that loads it goes on at 4
+    saved = {**alg.save(), "iter": 3}
+    resumed, _, _ = _learner(tmp_path, algo=algo)
+    assert resumed.iteration == 0 and resumed.load(saved, None, True)
+    assert resumed.iteration == 4 and not resumed.get_policy().act_on_estimates
+    assert resumed.load({**saved, "iter": 4}, None, True)
+    assert resumed.iteration == 5 and resumed.get_policy().act_on_estimates
+    # without the iteration (rsl_rl's load_cfg) the learner's count stays where it was
+    fresh, _, _ = _learner(tmp_path, algo=algo)
+    assert not fresh.load(saved, {"actor": True, "critic": True, "optimizer": True}, True)
+    assert fresh.iteration == 0
+
+
+def test_a_learner_resumed_from_the_studys_checkpoint_goes_on_at_its_place_in_the_estimate_schedule():
+    """results/study's LAS-MP seed 0 stopped after iteration 50 of a schedule that acts on the
+    estimates from iteration 100 on, every iteration."""
+    from lasmp.algo.checkpoint import checkpoint_cfg
+
+    data = read_checkpoint(ROOT / "results" / "study" / "lasmp" / "seed0" / "model_50.pt")
+    cfg = checkpoint_cfg(data, num_envs=4, seed=0)
+    assert (cfg.algo.estimate_rollout_start, cfg.algo.estimate_rollout_every) == (100, 1)
+    runner = make_runner(cfg, None)
+    runner.load(data, load_cfg={"actor": True, "critic": True, "optimizer": True, "iteration": True,
+                                "env_run_state": False})  # fmt: skip
+    alg = runner.alg
+    assert alg.iteration == runner.current_learning_iteration == 51
+    assert not alg.get_policy().act_on_estimates
+    assert [it for it in range(51, 103) if alg.acts_on_estimates(it)] == [100, 101, 102]
+
+
+def test_the_divergence_guard_is_the_learners_own_and_stops_a_non_finite_loss(tmp_path):
+    alg, env, steps = _learner(tmp_path)
+    assert "update" not in vars(alg)  # PPOROA.update itself, nobody's patch
+    _learner_rollout(alg, env, steps)
+    alg.storage.observations[GROUP_HISTORY][0, 0] = float("nan")  # one sample, read by the ROA pass alone
+    with pytest.raises(FloatingPointError, match=r"non-finite loss after the update of iteration 1: .*roa_exp"):
+        alg.update()
+    assert alg.iteration == 0  # the diverged update does not count
+
+
+def test_the_divergence_guard_stops_a_non_finite_parameter(tmp_path):
+    from lasmp.algo.ppo_roa import PPOROA
+
+    class PoisonedROA(PPOROA):
+        """Its ROA pass leaves a parameter infinite (its losses stay finite)."""
+
+        def update_roa(self):
+            losses = super().update_roa()
+            with torch.no_grad():
+                next(self.get_policy().parameters()).view(-1)[0] = float("inf")
+            return losses
+
+    alg, env, steps = _learner(tmp_path, algorithm=PoisonedROA)
+    assert type(alg) is PoisonedROA and "update" not in vars(alg)
+    _learner_rollout(alg, env, steps)
+    with pytest.raises(FloatingPointError, match="after the update .*non-finite values in actor_state_dict"):
+        alg.update()
+    assert alg.iteration == 0
 
 
 def test_fused_adam_option_builds_fused_optimizers_over_the_same_parameters(tmp_path):
@@ -293,7 +393,7 @@ def test_rough_static_task_trains_the_rs_policy(tmp_path):
 def test_an_iteration_on_the_estimates_updates_on_the_very_estimates_its_rollout_acted_on(tmp_path, monkeypatch):
     runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 1, "estimate_rollout_start": 0}), None)
     alg, actor = runner.alg, runner.alg.get_policy()
-    alg.rollout_on_estimates(0)
+    assert alg.iteration == 0 and actor.act_on_estimates  # the schedule: on from iteration 0
     rollout(runner)
     kept = alg._rollout_estimates
     sample = alg.storage.observations.flatten(0, 1)
@@ -319,7 +419,6 @@ def test_an_iteration_on_the_estimates_updates_on_the_very_estimates_its_rollout
     assert calls == [] and len(handed) == 1 and torch.equal(handed[0], kept)  # bit for bit, none recomputed
     assert GROUP_DETACHED_ESTIMATES not in alg.storage.observations.keys()  # the next rollout writes without it
     # an update on the estimates after a rollout that did not keep them computes them, once
-    alg.rollout_on_estimates(1)
     actor.act_on_estimates = False
     rollout(runner)
     actor.act_on_estimates = True

@@ -11,17 +11,25 @@ with the adaptation losses of `LasmpActor.roa_losses`:
 Our choices (SPEC leaves them open): the estimators have their own Adam optimizer
 (`estimator_learning_rate`); the encoder's regularization term (the second of L_imp) steps the
 encoder through PPO's optimizer, in a step of its own in which no other parameter has a
-gradient; lambda is constant (no ramp). Rollouts act with privileged inputs, except that from
-iteration `estimate_rollout_start` on, every `estimate_rollout_every`-th iteration (rollout and
-PPO update alike) acts on the estimators' detached outputs, as at deployment: the policy then
-learns to live with estimation errors (`rollout_on_estimates`, called by the runner). Its PPO
-update reuses the estimates the rollout acted on, kept at each step (`act`): PPO's epochs change
-neither the estimators nor the normalizer, so they are what the policy saw, bit for bit.
+gradient; lambda is constant (no ramp).
+
+The learner counts its iterations (`iteration`: the one whose rollout and update come next; an
+update completes it, `load` of a checkpoint continues after the checkpoint's). Rollouts act with
+privileged inputs, except that from iteration `estimate_rollout_start` on, every
+`estimate_rollout_every`-th iteration (rollout and PPO update alike) acts on the estimators'
+detached outputs, as at deployment: the policy then learns to live with estimation errors
+(`acts_on_estimates`; the learner sets the actor's `act_on_estimates` for each iteration). Its
+PPO update reuses the estimates the rollout acted on, kept at each step (`act`): PPO's epochs
+change neither the estimators nor the normalizer, so they are what the policy saw, bit for bit.
+
+Divergence guard: a non-finite loss, parameter or optimizer state after an update raises
+`FloatingPointError` naming it, before the iteration counts as done (the runner then saves nothing).
 """
 
 from __future__ import annotations
 
 import copy
+import math
 from itertools import chain
 
 import torch
@@ -29,6 +37,7 @@ import torch.nn as nn
 from rsl_rl.algorithms import PPO
 from rsl_rl.utils.utils import reduce_gradients_in_buckets
 
+from lasmp.algo.checkpoint import check_finite
 from lasmp.algo.precision import resolve_precision
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
 
@@ -67,6 +76,11 @@ class PPOROA(PPO):
             raise ValueError(f"algorithm.roa_lambda must be >= 0, got {roa_lambda}")
         if estimator_epochs < 1:
             raise ValueError(f"algorithm.estimator_epochs must be >= 1, got {estimator_epochs}")
+        if estimate_rollout_every < 0 or estimate_rollout_start < 0:
+            raise ValueError(
+                "algorithm.estimate_rollout_every and estimate_rollout_start must be >= 0, got "
+                f"{estimate_rollout_every}, {estimate_rollout_start}"
+            )
         self.roa_lambda = roa_lambda
         self.estimator_epochs = estimator_epochs
         self.estimate_rollout_every = estimate_rollout_every
@@ -78,13 +92,24 @@ class PPOROA(PPO):
         # (T, N, k): the estimates each rollout step acted on, and how many steps of this rollout hold them
         self._rollout_estimates: torch.Tensor | None = None
         self._estimate_steps = 0
+        self.iteration = 0
 
-    def rollout_on_estimates(self, iteration: int) -> bool:
-        """Set whether iteration `iteration` (its rollout and PPO update) acts on the estimates."""
+    def acts_on_estimates(self, iteration: int) -> bool:
+        """Whether iteration `iteration` (its rollout and PPO update) acts on the estimates: from
+        `estimate_rollout_start` on, every `estimate_rollout_every`-th (0: never)."""
         every, start = self.estimate_rollout_every, self.estimate_rollout_start
-        on = every > 0 and iteration >= start and (iteration - start) % every == 0
-        self.actor.act_on_estimates = on
-        return on
+        return every > 0 and iteration >= start and (iteration - start) % every == 0
+
+    @property
+    def iteration(self) -> int:
+        """The iteration whose rollout and update come next (0-based; `update` completes it)."""
+        return self._iteration
+
+    @iteration.setter
+    def iteration(self, iteration: int) -> None:
+        """Go on at iteration `iteration`: its rollout and update act as the schedule says."""
+        self._iteration = int(iteration)
+        self._raw_actor.act_on_estimates = self.acts_on_estimates(self._iteration)
 
     def start_learner(self) -> None:
         """Once, when training starts (the first `act` or `update`, so that loading a policy to play or
@@ -137,7 +162,20 @@ class PPOROA(PPO):
             del self.storage.mini_batch_generator  # the storage's own again
         loss_dict.update(self.update_roa())
         loss_dict["Policy/acts_on_estimates"] = float(on_estimates)
+        self._check_diverged(loss_dict)
+        self.iteration += 1
         return loss_dict
+
+    def _check_diverged(self, loss_dict: dict[str, float]) -> None:
+        """The divergence guard: FloatingPointError for a non-finite loss, parameter or optimizer state."""
+        bad = {k: v for k, v in loss_dict.items() if not math.isfinite(float(v))}
+        if bad:
+            raise FloatingPointError(
+                f"non-finite loss after the update of iteration {self.iteration + 1}: {bad}. "
+                "Training diverged; lower algo.learning_rate or check the rewards. The last saved checkpoint "
+                "is intact (none is written from a diverged state)."
+            )
+        check_finite(self.save(), "parameters after the update (training diverged)")
 
     def _mini_batches_gathered_once(self, num_mini_batches: int, num_epochs: int):
         """rsl_rl's mini-batches for PPO's epochs, each gathered from the rollout once: its generator
@@ -204,6 +242,9 @@ class PPOROA(PPO):
         return saved
 
     def load(self, loaded_dict: dict, load_cfg: dict | None, strict: bool) -> bool:
+        """rsl_rl's `load`, and the estimators' optimizer; with the iteration (rsl_rl's answer), the
+        learner continues after the checkpoint's iteration `iter` (the last completed one), and so
+        does the estimate schedule."""
         load_iteration = super().load(loaded_dict, load_cfg, strict)
         if (
             load_cfg is None or load_cfg.get("optimizer")
@@ -211,6 +252,8 @@ class PPOROA(PPO):
             self.estimator_optimizer.load_state_dict(loaded_dict["estimator_optimizer_state_dict"])
         for opt in (self.optimizer, self.estimator_optimizer):
             self._keep_own_kernel(opt)
+        if load_iteration:
+            self.iteration = int(loaded_dict["iter"]) + 1
         return load_iteration
 
     def _keep_own_kernel(self, opt: torch.optim.Optimizer) -> None:

@@ -1,11 +1,11 @@
 """Training runner: rsl_rl's `OnPolicyRunner` with complete, atomic, checked checkpoints (see
-`lasmp.algo.checkpoint`), a divergence guard and safe interruption.
+`lasmp.algo.checkpoint`), a fault guard and safe interruption.
 
-- Divergence: after every update, a non-finite loss or parameter raises `FloatingPointError`
-  naming it, and `save` refuses to write a non-finite checkpoint, so the last good one stays.
+- Divergence: the learner's update raises `FloatingPointError` on a non-finite loss or parameter
+  (`PPOROA`'s guard), and `save` refuses to write a non-finite checkpoint, so the last good one stays.
 - Faults: each iteration counts the env-steps whose physics faulted (the env's `fault_count`; the
   progress line shows them); more than `max_fault_fraction` of an iteration's env-steps raises
-  `TrainingFaulted` before its update, naming the cause.
+  `TrainingFaulted` during its rollout, before its update, naming the cause.
 - Interruption: SIGINT (Ctrl-C) or SIGTERM during `learn` lets the current iteration finish, writes
   `model_<it>.pt` and raises `TrainingInterrupted` (the caller prints the resume command). A second
   signal exits at once (`SystemExit`, code 128 + signal: 130 / 143), without a checkpoint.
@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import datetime
-import math
 import signal
 import statistics
 import sys
@@ -60,8 +59,14 @@ class TrainingFaulted(RuntimeError):
 class OneLineLogger(Logger):
     """TensorBoard scalars as rsl_rl's logger writes them, but one terminal line per iteration."""
 
+    step_done = None  # callback() after each env-step of a rollout (the runner's fault check)
     iteration_done = None  # callback(it) after each iteration's log (the runner's interruption check)
     iteration_faults: int | None = None  # this iteration's env-steps whose physics faulted (the runner sets it)
+
+    def process_env_step(self, rewards, dones, extras, intrinsic_rewards=None) -> None:
+        super().process_env_step(rewards, dones, extras, intrinsic_rewards)
+        if self.step_done is not None:
+            self.step_done()
 
     def log(self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std, rnd_weight,
             **kwargs) -> None:  # fmt: skip
@@ -114,7 +119,7 @@ class OneLineLogger(Logger):
 
 
 class LasmpRunner(OnPolicyRunner):
-    """`OnPolicyRunner` + checkpoints with config, layout, env and random state; divergence guard;
+    """`OnPolicyRunner` + checkpoints with config, layout, env and random state; fault guard;
     checkpoint on SIGINT / SIGTERM."""
 
     def __init__(
@@ -124,18 +129,16 @@ class LasmpRunner(OnPolicyRunner):
         super().__init__(env, train_cfg, log_dir=log_dir, device=device)
         self.full_config = full_config or {}
         self.max_fault_fraction = max_fault_fraction
-        self._iteration = 0  # the iteration under way
-        self._faults_before = 0  # env.fault_count at its start
+        self._faults_before = 0  # env.fault_count when the iteration under way began
         self.logger = OneLineLogger(
             log_dir=log_dir, cfg=self.cfg, env_cfg=env.cfg, num_envs=env.num_envs, is_distributed=self.is_distributed,
             gpu_world_size=self.gpu_world_size, gpu_global_rank=self.gpu_global_rank, device=self.device,
         )  # fmt: skip
         self._final_iteration = -1  # the last iteration of the current learn()
         self._other_ranks: list | None = None  # rank 0: the other ranks' running state for the next save
+        self.logger.step_done = self._check_faults
         self.logger.iteration_done = self._after_iteration
         self._signal: int | None = None
-        self._update = self.alg.update
-        self.alg.update = self._checked_update  # rsl_rl's loop calls alg.update() once per iteration
 
     # -- data-parallel training (lasmp.algo.distributed) -------------------------------------------
     def _configure_multi_gpu(self) -> None:
@@ -181,37 +184,26 @@ class LasmpRunner(OnPolicyRunner):
         return {**data, "env_state": {**data["env_state"], "run": mine["run"]}, "rng_state": mine["rng_state"],
                 "episode_log_state": None}  # fmt: skip
 
-    # -- fault and divergence guards --------------------------------------------------------------
+    # -- fault guard ------------------------------------------------------------------------------
     def _check_faults(self) -> None:
-        """Count the rollout's faulted env-steps for the progress line; stop past the threshold."""
+        """After each env-step of a rollout: count the iteration's faulted env-steps so far for the
+        progress line; stop as soon as they pass the threshold (the count only grows in a rollout)."""
         count = getattr(self.env, "fault_count", None)
         if count is None:
             return
-        faults, self._faults_before = count - self._faults_before, count
+        faults = count - self._faults_before
         self.logger.iteration_faults = faults
         steps = self.cfg["num_steps_per_env"] * self.env.num_envs
         if faults > self.max_fault_fraction * steps:
+            it = self.alg.iteration + 1  # the learner's iteration under way, counted from 1
             raise TrainingFaulted(
-                f"physics faults: {faults:,} of the {steps:,} env-steps of iteration {self._iteration + 1} "
+                f"physics faults: {faults:,} of the {steps:,} env-steps of iteration {it} "
                 f"faulted ({faults / steps:.0%}, more than runner.max_fault_fraction={self.max_fault_fraction}). The "
                 "simulation diverges (MuJoCo errors or warnings, non-finite state, runaway joints): check "
                 "env.sim.dt_s, env.control.action_scale, the trajectory file and the robots' parameters "
                 "(runner.max_fault_fraction=1 trains on regardless). Stopped before this iteration's update; "
                 "the last saved checkpoint is intact."
             )
-
-    def _checked_update(self) -> dict[str, float]:
-        self._check_faults()
-        losses = self._update()
-        bad = {k: v for k, v in losses.items() if not math.isfinite(float(v))}
-        if bad:
-            raise FloatingPointError(
-                f"non-finite loss after the update of iteration {self._iteration + 1}: {bad}. "
-                "Training diverged; lower algo.learning_rate or check the rewards. The last saved checkpoint "
-                "is intact (none is written from a diverged state)."
-            )
-        check_finite(self.alg.save(), "parameters after the update (training diverged)")
-        return losses
 
     # -- interruption ------------------------------------------------------------------------------
     REPEAT_WINDOW_S = 2.0  # a signal this soon after the first is its echo (torchrun sends SIGTERM twice)
@@ -227,13 +219,8 @@ class LasmpRunner(OnPolicyRunner):
         print(f"\n{signal.Signals(signum).name}: finishing this iteration, then saving a checkpoint "
               "(send it again to abort at once)", flush=True)  # fmt: skip
 
-    def _set_rollout_mode(self, iteration: int) -> None:
-        if hasattr(self.alg, "rollout_on_estimates"):
-            self.alg.rollout_on_estimates(iteration)
-
     def _after_iteration(self, it: int) -> None:
-        self._iteration = it + 1
-        self._set_rollout_mode(it + 1)  # the next iteration's rollout and update
+        self._faults_before = getattr(self.env, "fault_count", 0)  # the next rollout's faults count from here
         if self.is_distributed:
             self._share_iteration_end(it)
         if self._signal is None:
@@ -252,10 +239,8 @@ class LasmpRunner(OnPolicyRunner):
         if threading.current_thread() is threading.main_thread():
             previous = {s: signal.signal(s, self._on_signal) for s in INTERRUPT_SIGNALS}
         self._signal = None
-        self._iteration = self.current_learning_iteration
         self._final_iteration = self.current_learning_iteration + num_learning_iterations - 1
         self._faults_before = getattr(self.env, "fault_count", 0)
-        self._set_rollout_mode(self.current_learning_iteration)
         try:
             super().learn(num_learning_iterations, init_at_random_ep_len)
         finally:
@@ -313,8 +298,8 @@ class LasmpRunner(OnPolicyRunner):
         where = data.get("path", "the checkpoint")
         # a file that passed read_checkpoint may still not fit: its errors as CheckpointError, naming it
         with _not_fitting(f"{where} does not fit this policy and learner"):
-            self.alg.load(data, load_cfg, strict)
-        if load_cfg is None or load_cfg.get("iteration", True):
+            iteration = self.alg.load(data, load_cfg, strict)  # the learner goes on from the checkpoint's too
+        if iteration:
             self.current_learning_iteration = int(data["iter"]) + 1  # the saved iteration is complete
         if data.get("env_state"):  # the running state only to resume training in an env of the same size
             run = load_cfg is None or load_cfg.get("env_run_state", True)

@@ -2,7 +2,6 @@
 
 from lasmp.modules.encoder import ImplicitEncoder
 from lasmp.modules.estimator import HistoryEstimator
-from lasmp.modules.export import LasmpDeployPolicy
-from lasmp.modules.policy import LasmpActor
+from lasmp.modules.policy import LasmpActor, LasmpDeployPolicy
 
 __all__ = ["HistoryEstimator", "ImplicitEncoder", "LasmpActor", "LasmpDeployPolicy"]

@@ -1,9 +1,12 @@
-"""The composed LAS-MP policy: backbone + implicit encoder + history estimators (SPEC §7-9).
+"""The composed LAS-MP policy: backbone + implicit encoder + history estimators (SPEC §7-9), and
+its deployable form (`LasmpDeployPolicy`: the proprioceptive window in, the mean action out).
 
 Usable as rsl_rl's actor: ``{"class_name": "lasmp.modules.policy:LasmpActor", ...}``.
 """
 
 from __future__ import annotations
+
+import copy
 
 import torch
 from rsl_rl.models import MLPModel
@@ -12,7 +15,6 @@ from torch import nn
 
 from lasmp.modules.encoder import ImplicitEncoder
 from lasmp.modules.estimator import HistoryEstimator
-from lasmp.modules.export import LasmpDeployPolicy
 from lasmp.modules.obs_groups import (
     GROUP_ALIGNMENT,
     GROUP_COMMAND,
@@ -81,8 +83,8 @@ class LasmpActor(MLPModel):
             obs, obs_groups, obs_set, output_dim, hidden_dims, activation, obs_normalization, distribution_cfg
         )
         self.deploy: bool = False
-        # training on the estimates (PPOROA.rollout_on_estimates): the estimated inputs, detached
-        # so that PPO's gradients never reach the estimators
+        # training on the estimates: the estimated inputs, detached so that PPO's gradients never
+        # reach the estimators; set for each iteration by the learner (PPOROA's estimate schedule)
         self.act_on_estimates: bool = False
         # the estimates of the last forward pass on them (`get_latent`, outside PPO's update), detached
         self.last_detached_estimates: torch.Tensor | None = None
@@ -318,3 +320,64 @@ class LasmpActor(MLPModel):
                 "export takes only the proprioceptive window; a command-conditioned policy "
                 "(command_input=True, the R-S baseline) needs a command input and is not exported"
             )
+
+
+class LasmpDeployPolicy(nn.Module):
+    """obs_window (n, H+1, D) = [o_t, o_{t-1}, ..., o_{t-H}] -> actions (n, A), deployment mode, deterministic.
+
+    Holds deep copies of the normalizer, backbone, estimators and the distribution's mean extractor;
+    the history normalization (o-part of the normalizer) is frozen at export time.
+    """
+
+    is_recurrent: bool = False
+
+    def __init__(self, actor: LasmpActor, verbose: bool = False) -> None:
+        super().__init__()
+        self.verbose = verbose
+        self.obs_dim = actor.num_obs
+        self.history_len = actor.history_len
+        self.use_alignment = actor.use_alignment
+        self.gyro_z_col = GYRO_Z_COL
+        self.history_input = actor.history_input
+        mean, scale = actor.history_norm_params()
+        self.register_buffer("hist_mean", mean.detach().clone())
+        self.register_buffer("hist_scale", scale.detach().clone())
+        self.obs_normalizer = copy.deepcopy(actor.obs_normalizer)
+        self.mlp = copy.deepcopy(actor.mlp)
+        self.explicit_estimator = copy.deepcopy(actor.explicit_estimator)
+        self.implicit_estimator = copy.deepcopy(actor.implicit_estimator)
+        if actor.distribution is not None:
+            self.deterministic_output = actor.distribution.as_deterministic_output_module()
+        else:
+            self.deterministic_output = nn.Identity()
+
+    def forward(self, obs_window: torch.Tensor) -> torch.Tensor:
+        o = obs_window[:, 0]
+        history_n = (obs_window[:, 1:] - self.hist_mean) / self.hist_scale
+        l_imp = self.implicit_estimator(history_n)
+        parts = [o]
+        if self.explicit_estimator is not None:
+            x_hat = self.explicit_estimator(history_n)
+            parts.append(x_hat)
+            if self.use_alignment:
+                parts.append(alignment_from_estimates(x_hat, o[:, self.gyro_z_col]))
+        latent = [self.obs_normalizer(torch.cat(parts, dim=-1)), l_imp]
+        if self.history_input:
+            latent.append(history_n.flatten(1))
+        return self.deterministic_output(self.mlp(torch.cat(latent, dim=-1)))
+
+    @torch.jit.export
+    def reset(self) -> None:
+        """No recurrent state (the window is given whole each step)."""
+        pass
+
+    def get_dummy_inputs(self) -> tuple[torch.Tensor]:
+        return (torch.zeros(1, self.history_len + 1, self.obs_dim),)
+
+    @property
+    def input_names(self) -> list[str]:
+        return ["obs_window"]
+
+    @property
+    def output_names(self) -> list[str]:
+        return ["actions"]

@@ -171,20 +171,20 @@ def test_the_learner_counts_its_iterations_and_acts_on_the_estimates_on_schedule
 
 
 def test_a_learner_resumed_from_the_studys_checkpoint_goes_on_at_its_place_in_the_estimate_schedule():
-    """results/study's LAS-MP seed 0 stopped after iteration 50 of a schedule that acts on the
-    estimates from iteration 100 on, every iteration."""
+    """results/study's LAS-MP seed 0 stopped after iteration 449 of a schedule that acts on the
+    estimates from iteration 100 on, every iteration: it goes on at 450, on the estimates."""
     from lasmp.algo.checkpoint import checkpoint_cfg
 
-    data = read_checkpoint(ROOT / "results" / "study" / "lasmp" / "seed0" / "model_50.pt")
+    data = read_checkpoint(ROOT / "results" / "study" / "lasmp" / "seed0" / "model_449.pt")
     cfg = checkpoint_cfg(data, num_envs=4, seed=0)
     assert (cfg.algo.estimate_rollout_start, cfg.algo.estimate_rollout_every) == (100, 1)
     runner = make_runner(cfg, None)
     runner.load(data, load_cfg={"actor": True, "critic": True, "optimizer": True, "iteration": True,
                                 "env_run_state": False})  # fmt: skip
     alg = runner.alg
-    assert alg.iteration == runner.current_learning_iteration == 51
-    assert not alg.get_policy().act_on_estimates
-    assert [it for it in range(51, 103) if alg.acts_on_estimates(it)] == [100, 101, 102]
+    assert alg.iteration == runner.current_learning_iteration == 450
+    assert alg.get_policy().act_on_estimates
+    assert [it for it in range(95, 103) if alg.acts_on_estimates(it)] == [100, 101, 102]
 
 
 def test_the_divergence_guard_is_the_learners_own_and_stops_a_non_finite_loss(tmp_path):

@@ -1,4 +1,4 @@
-"""Calibrate the open readings of the paper's world against its Stand Still row (SPEC §13).
+"""Calibrate the open readings of the paper's world against its Stand Still row (docs/world.md).
 
 Plays Stand Still (a = 0) on the first K episodes of Xi_eval's pairing (trajectory k, robot
 k mod 1,024) in each candidate world, and scores every candidate reading of the metrics at once
@@ -37,8 +37,13 @@ from lasmp.eval.cli import eval_env_overrides
 from lasmp.eval.metrics import EpisodeMetrics, TrunkPose, metric_h_des_p_m
 from lasmp.eval.run import BenchmarkSource
 
-PAPER = {"collision": (0.612, 0.29), "height_violation": (0.142, 0.07), "position_deviation_m": (0.394, 0.04),
-         "rotation_deviation_rad": (0.182, 0.07), "power_w": (1.031, 0.17)}  # fmt: skip
+PAPER = {
+    "collision": (0.612, 0.29),
+    "height_violation": (0.142, 0.07),
+    "position_deviation_m": (0.394, 0.04),
+    "rotation_deviation_rad": (0.182, 0.07),
+    "power_w": (1.031, 0.17),
+}
 TWO_PI = 2.0 * math.pi
 
 
@@ -99,13 +104,18 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
     spline_kw = dict(spline_kw)
     channels = spline_kw.pop("channels", None)
     spline = T.SplineSpec(**spline_kw)
-    traj = T.sample(len(bench.trajectories), T.ranges_for_split("test"), np.random.default_rng([bench.seed, 0]),
-                    spline=spline)  # fmt: skip
+    traj = T.sample(
+        len(bench.trajectories),
+        T.ranges_for_split("test"),
+        np.random.default_rng([bench.seed, 0]),
+        spline=spline,
+    )
     if channels is not None:  # keep only these pose channels moving
         keep = np.isin(T.POSE_NAMES, channels.split())
         poses = np.where(keep, traj.knot_poses, 0.0 * traj.knot_poses)  # NaN padding stays NaN
-        traj = T.PiecewisePoly.from_knots(traj.knot_times_s, poses, traj.n_knots, traj.kind, traj.degree,
-                                          traj.n_waypoints)  # fmt: skip
+        traj = T.PiecewisePoly.from_knots(
+            traj.knot_times_s, poses, traj.n_knots, traj.kind, traj.degree, traj.n_waypoints
+        )
     world = bm.Benchmark(traj.subset(np.arange(episodes)), bench.robots, bench.seed)
     stats = T.statistics(traj)["overall"]
     env_overrides = _merge(eval_env_overrides(min(num_envs, episodes), 0), overrides)
@@ -131,8 +141,16 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
     env.reset()
     n = env.num_envs
     start(np.arange(n), as_numpy(env.readout))
-    keys = ("steps", "viol_centre", "viol_surface", "pos_platform", "pos_translating", "rot_world", "rot_platform",
-            "power")  # fmt: skip
+    keys = (
+        "steps",
+        "viol_centre",
+        "viol_surface",
+        "pos_platform",
+        "pos_translating",
+        "rot_world",
+        "rot_platform",
+        "power",
+    )
     out = {k: np.full(episodes, np.nan) for k in (*keys, "collision")}
     zeros = torch.zeros(n, 12)
     done_count, t0 = 0, time.perf_counter()
@@ -166,12 +184,17 @@ def play_world(name: str, episodes: int, num_envs: int, bench: bm.Benchmark) -> 
     counted = out["steps"] > 0
     mean = {k: float(np.mean(out[k][counted])) for k in keys if k != "steps"}
     row = {
-        "world": name, "spline": {"kind": spline.kind, "degree": spline.degree, "channels": channels},
-        "overrides": overrides, "episodes": episodes,
-        "path_length_m": stats["mean_path_length_m"], "speed_mps": stats["mean_speed_mps"],
-        "collision": float(np.mean(out["collision"])), **mean,
-        "median_episode_s": float(np.median(out["steps"]) * env.dt_s), "wall_s": time.perf_counter() - t0,
-    }  # fmt: skip
+        "world": name,
+        "spline": {"kind": spline.kind, "degree": spline.degree, "channels": channels},
+        "overrides": overrides,
+        "episodes": episodes,
+        "path_length_m": stats["mean_path_length_m"],
+        "speed_mps": stats["mean_speed_mps"],
+        "collision": float(np.mean(out["collision"])),
+        **mean,
+        "median_episode_s": float(np.median(out["steps"]) * env.dt_s),
+        "wall_s": time.perf_counter() - t0,
+    }
     return row
 
 
@@ -184,13 +207,17 @@ def _rot(row: dict) -> str:
 
 
 def markdown_table(rows: list[dict]) -> str:
-    """The candidate-world table of the README from rows of `play_world` (one JSON line each)."""
-    head = ("| world | path m | speed m/s | collision | height viol. (top / centre) | "
-            "pos. dev. m (platform / translating) | rot. dev. rad (world tilt / platform) | power W |")  # fmt: skip
+    """The candidate-world table of docs/world.md from rows of `play_world` (one JSON line each)."""
+    head = (
+        "| world | path m | speed m/s | collision | height viol. (top / centre) | "
+        "pos. dev. m (platform / translating) | rot. dev. rad (world tilt / platform) | power W |"
+    )
     lines = [head, "|" + "---|" * 8]
     p = PAPER
-    lines.append(f"| paper, Stand Still | 7.12 | 0.69 | {p['collision'][0]} | {p['height_violation'][0]} | "
-                 f"{p['position_deviation_m'][0]} | {p['rotation_deviation_rad'][0]} | {p['power_w'][0]} |")  # fmt: skip
+    lines.append(
+        f"| paper, Stand Still | 7.12 | 0.69 | {p['collision'][0]} | {p['height_violation'][0]} | "
+        f"{p['position_deviation_m'][0]} | {p['rotation_deviation_rad'][0]} | {p['power_w'][0]} |"
+    )
     for r in rows:
         lines.append(
             f"| {r['world']} | {r['path_length_m']:.2f} | {r['speed_mps']:.2f} | {r['collision']:.3f} | "

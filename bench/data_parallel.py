@@ -29,7 +29,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 STEPS = re.compile(r"^it (\d+)/\d+ \| ([\d,]+) steps/s")
-PROGRESS = re.compile(r"^it (\d+)/\d+ \| [\d,]+ steps/s \| reward +(\S+)(?: \| success (\S+))?(?: \| level (\d+))?")
+PROGRESS = re.compile(
+    r"^it (\d+)/\d+ \| [\d,]+ steps/s \| reward +(\S+)(?: \| success (\S+))?(?: \| level (\d+))?"
+)
 
 
 def run(cmd: list[str]) -> str:
@@ -41,20 +43,35 @@ def run(cmd: list[str]) -> str:
 
 def steps_per_s(cmd: list[str], warmup: int) -> float:
     stdout = run(cmd)
-    rates = [float(m.group(2).replace(",", "")) for line in stdout.splitlines()
-             if (m := STEPS.match(line)) and int(m.group(1)) > warmup]  # fmt: skip
+    rates = [
+        float(m.group(2).replace(",", ""))
+        for line in stdout.splitlines()
+        if (m := STEPS.match(line)) and int(m.group(1)) > warmup
+    ]
     if not rates:
         raise SystemExit(f"no progress lines after the warm-up in:\n{stdout[-2000:]}")
     return statistics.median(rates)
 
 
-def commands(envs: int, processes: int, iterations: int, tmp: str, extra: list[str]) -> tuple[list[str], list[str]]:
+def commands(
+    envs: int, processes: int, iterations: int, tmp: str, extra: list[str]
+) -> tuple[list[str], list[str]]:
     """One process with ENVS envs, and PROCESSES torchrun ranks with ENVS/PROCESSES each."""
     common = [f"runner.max_iterations={iterations}", "runner.save_interval=100000", *extra]
     one = [sys.executable, "train.py", f"env.num_envs={envs}", f"runner.log_dir={tmp}/one", *common]
-    many = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc_per_node={processes}",
-            "train.py", f"env.num_envs={envs // processes}", f"runner.log_dir={tmp}/many",
-            "env.sim.num_threads=1", "torch_threads=1", *common]  # fmt: skip
+    many = [
+        sys.executable,
+        "-m",
+        "torch.distributed.run",
+        "--standalone",
+        f"--nproc_per_node={processes}",
+        "train.py",
+        f"env.num_envs={envs // processes}",
+        f"runner.log_dir={tmp}/many",
+        "env.sim.num_threads=1",
+        "torch_threads=1",
+        *common,
+    ]
     return one, many
 
 
@@ -63,9 +80,12 @@ def curve(stdout: str) -> dict[str, list]:
     if not rows:
         raise SystemExit(f"no progress lines in:\n{stdout[-2000:]}")
     number = lambda x: None if x is None or x == "nan" else float(x)  # noqa: E731 (no episode ended: null)
-    return {"iteration": [int(r[0]) for r in rows], "reward": [number(r[1]) for r in rows],
-            "success": [number(r[2]) for r in rows],
-            "level": [int(r[3]) if r[3] else None for r in rows]}  # fmt: skip
+    return {
+        "iteration": [int(r[0]) for r in rows],
+        "reward": [number(r[1]) for r in rows],
+        "success": [number(r[2]) for r in rows],
+        "level": [int(r[3]) if r[3] else None for r in rows],
+    }
 
 
 def curves(args) -> None:
@@ -74,7 +94,10 @@ def curves(args) -> None:
     for seed in args.seeds:
         with tempfile.TemporaryDirectory() as tmp:
             one, many = commands(args.envs, args.processes, args.iterations, tmp, [f"seed={seed}"])
-            for layout, cmd in ((f"1x{args.envs}", one), (f"{args.processes}x{args.envs // args.processes}", many)):
+            for layout, cmd in (
+                (f"1x{args.envs}", one),
+                (f"{args.processes}x{args.envs // args.processes}", many),
+            ):
                 print(f"seed {seed}, {layout} ...", flush=True)
                 result["runs"].append({"seed": seed, "layout": layout, **curve(run(cmd))})
                 tmp_out = out.with_suffix(".tmp")
@@ -98,7 +121,13 @@ def plot(curves_json: str, figure: str) -> None:
         style = "-" if r["seed"] == runs[0]["seed"] else "--"
         label = f"{r['layout']} envs, seed {r['seed']}"
         for ax, key in zip(axes, ("reward", "success"), strict=True):
-            ax.plot(r["iteration"], [float("nan") if v is None else v for v in r[key]], style, color=color, label=label)
+            ax.plot(
+                r["iteration"],
+                [float("nan") if v is None else v for v in r[key]],
+                style,
+                color=color,
+                label=label,
+            )
     for ax, title in zip(axes, ("mean episode reward", "success rate (curriculum)"), strict=True):
         ax.set_xlabel("iteration")
         ax.set_title(title)
@@ -116,9 +145,13 @@ def main(argv=None) -> None:
     p.add_argument("--iterations", type=int, default=8)
     p.add_argument("--warmup", type=int, default=3)
     p.add_argument("--json", action="store_true")
-    p.add_argument("--curves", metavar="OUT.json", help="train both layouts per seed and write the learning curves")
+    p.add_argument(
+        "--curves", metavar="OUT.json", help="train both layouts per seed and write the learning curves"
+    )
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
-    p.add_argument("--plot", nargs=2, metavar=("CURVES.json", "FIGURE.png"), help="plot the curves of --curves")
+    p.add_argument(
+        "--plot", nargs=2, metavar=("CURVES.json", "FIGURE.png"), help="plot the curves of --curves"
+    )
     args = p.parse_args(argv)
     if args.plot:
         return plot(*args.plot)
@@ -132,14 +165,22 @@ def main(argv=None) -> None:
         one, many = commands(args.envs, args.processes, args.iterations, tmp, [])
         single = steps_per_s(one, args.warmup)
         parallel = steps_per_s(many, args.warmup)
-    result = {"envs_total": args.envs, "processes": args.processes, "iterations": args.iterations,
-              "warmup": args.warmup, "one_process_steps_per_s": single,
-              "data_parallel_steps_per_s": parallel, "ratio": parallel / single}  # fmt: skip
+    result = {
+        "envs_total": args.envs,
+        "processes": args.processes,
+        "iterations": args.iterations,
+        "warmup": args.warmup,
+        "one_process_steps_per_s": single,
+        "data_parallel_steps_per_s": parallel,
+        "ratio": parallel / single,
+    }
     if args.json:
         print(json.dumps(result))
     else:
-        print(f"1 x {args.envs} envs: {single:,.0f} steps/s; {args.processes} x {args.envs // args.processes}: "
-              f"{parallel:,.0f} steps/s (ratio {parallel / single:.2f})")  # fmt: skip
+        print(
+            f"1 x {args.envs} envs: {single:,.0f} steps/s; {args.processes} x {args.envs // args.processes}: "
+            f"{parallel:,.0f} steps/s (ratio {parallel / single:.2f})"
+        )
 
 
 if __name__ == "__main__":

@@ -40,10 +40,14 @@ def main(argv=None) -> int:
     ok = t_end >= env.max_episode_length * env.dt_s
     h = np.concatenate(heights)
     out = {
-        "checkpoint": args.checkpoint, "episodes": n, "level": int(np.median(env.traj_level)),
-        "success_rate": float(ok.mean()), "median_failure_s": float(np.median(t_end[~ok])) if (~ok).any() else None,
-        "trunk_height_above_surface_m": float(h.mean()), "nominal_stance_height_m": float(env.trunk_height_m),
-    }  # fmt: skip
+        "checkpoint": args.checkpoint,
+        "episodes": n,
+        "level": int(np.median(env.traj_level)),
+        "success_rate": float(ok.mean()),
+        "median_failure_s": float(np.median(t_end[~ok])) if (~ok).any() else None,
+        "trunk_height_above_surface_m": float(h.mean()),
+        "nominal_stance_height_m": float(env.trunk_height_m),
+    }
     print(json.dumps(out) if args.json else "\n".join(f"{k}: {v}" for k, v in out.items()))
     return 0
 

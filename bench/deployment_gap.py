@@ -29,9 +29,9 @@ from lasmp.deploy import load_deploy_env
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
 from lasmp.eval.real_motion import suite as rm
-from lasmp.eval.real_motion.motion import Motion, time_grid, to_trajectories
 from lasmp.modules.obs_groups import GYRO_Z_COL
 from lasmp.modules.policy import alignment_from_estimates
+from lasmp.motions.motion import Motion, time_grid, to_trajectories
 
 N_CONTACTS = 4  # x_exp = [contacts (4), v_body_b (3), v_plf_b (3), omega_plf_b (3)]
 MODES = {
@@ -47,11 +47,15 @@ MODES = {
 BENCHMARK_ENV = {"domain_rand": {"split": "test"}, "curriculum": {"enabled": False}}  # as evaluate.py's
 
 
-def collision_rate(checkpoint: str, path: str, duration_s: float | None, n: int, seed: int, truth: str) -> float:
+def collision_rate(
+    checkpoint: str, path: str, duration_s: float | None, n: int, seed: int, truth: str
+) -> float:
     """Share of the n envs' first episodes that end in a collision or fall; duration_s None: the
     trajectory file is benchmark episodes, played with the env's own episode length and drive."""
     overrides = BENCHMARK_ENV if duration_s is None else rm.env_overrides(duration_s, "close")
-    env, pol, _, _ = load_deploy_env(checkpoint, num_envs=n, seed=seed, trajectories=path, env_overrides=overrides)
+    env, pol, _, _ = load_deploy_env(
+        checkpoint, num_envs=n, seed=seed, trajectories=path, env_overrides=overrides
+    )
     estimated = pol._estimated_inputs
     current = {}
 
@@ -90,10 +94,19 @@ def main(argv=None) -> dict:
     ap.add_argument("--num-envs", type=int, default=128)
     ap.add_argument("--duration-s", type=float, default=20.0)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--modes", nargs="+", choices=list(MODES.values()), default=list(MODES.values()),
-                    help="truth substituted: '' none, x, c, v, l, xl (default: all six)")  # fmt: skip
-    ap.add_argument("--benchmark-episodes", type=int, default=None,
-                    help="play the first K Xi_eval trajectories (one per env) instead of a still platform")
+    ap.add_argument(
+        "--modes",
+        nargs="+",
+        choices=list(MODES.values()),
+        default=list(MODES.values()),
+        help="truth substituted: '' none, x, c, v, l, xl (default: all six)",
+    )
+    ap.add_argument(
+        "--benchmark-episodes",
+        type=int,
+        default=None,
+        help="play the first K Xi_eval trajectories (one per env) instead of a still platform",
+    )
     ap.add_argument("--benchmark", default="benchmarks/xi_eval.npz")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:

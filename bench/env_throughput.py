@@ -28,7 +28,9 @@ import lasmp  # noqa: F401  (first: it sets the OpenMP spin that torch reads whe
 import numpy as np
 import torch
 
+from lasmp.config import build_env_cfg
 from lasmp.envs.backends import make_backend
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
 RAW_SAMPLES = 200  # env states replayed on the raw backend; with 50 the ratio moved by 2 points between runs
@@ -94,27 +96,45 @@ def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--num-envs", type=int, default=1024)
     p.add_argument("--steps", type=int, default=1000, help="policy steps of the env (2 episodes at 500)")
-    p.add_argument("--raw-samples", type=int, default=RAW_SAMPLES, help="env states replayed by the raw backend")
+    p.add_argument(
+        "--raw-samples", type=int, default=RAW_SAMPLES, help="env states replayed by the raw backend"
+    )
     p.add_argument("--threads", type=int, default=0, help="Batch threads, 0 = all cores")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--backend", choices=("cpu", "warp"), default="cpu", help="physics backend (env.backend)")
-    p.add_argument("--device", default="cpu", help="the warp backend's device: cuda[:N], or cpu (Warp's CPU device)")
-    p.add_argument("--torch-threads", type=int, default=1,
-                   help="torch's threads for the env's tensor work (0: torch's default, all cores, as train.py)")  # fmt: skip
+    p.add_argument(
+        "--device", default="cpu", help="the warp backend's device: cuda[:N], or cpu (Warp's CPU device)"
+    )
+    p.add_argument(
+        "--torch-threads",
+        type=int,
+        default=1,
+        help="torch's threads for the env's tensor work (0: torch's default, all cores, as train.py)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object only")
     args = p.parse_args(argv)
     if args.raw_samples < 1 or args.steps < 1:
         p.error(f"--steps and --raw-samples must be >= 1, got {args.steps} and {args.raw_samples}")
-    if args.torch_threads > 0:  # the env's tensor work is small; by default leave the cores to the physics threads
+    if (
+        args.torch_threads > 0
+    ):  # the env's tensor work is small; by default leave the cores to the physics threads
         torch.set_num_threads(args.torch_threads)
-    env = MovingPlatformEnv(
-        {"num_envs": args.num_envs, "seed": args.seed, "backend": args.backend, "sim": {"num_threads": args.threads}},
-        device=args.device,
-    )
+    overrides = {
+        "num_envs": args.num_envs,
+        "seed": args.seed,
+        "backend": args.backend,
+        "sim": {"num_threads": args.threads},
+    }
+    env = MovingPlatformEnv(build_env_cfg(overrides, schema=MovingPlatformCfg), device=args.device)
     env.reset()
     measure(env, 5, raw_samples=1)  # warm-up
     m = measure(env, args.steps, args.raw_samples)
-    env_sps, raw, episodes, collisions = m["env_steps_per_s"], m["raw_steps_per_s"], m["episodes"], m["collisions"]
+    env_sps, raw, episodes, collisions = (
+        m["env_steps_per_s"],
+        m["raw_steps_per_s"],
+        m["episodes"],
+        m["collisions"],
+    )
     result = {
         "num_envs": args.num_envs,
         "backend": args.backend,

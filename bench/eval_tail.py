@@ -17,6 +17,8 @@ import time
 import numpy as np
 import torch
 
+from lasmp.config import build_env_cfg
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.eval.cli import DEFAULT_BENCHMARK, eval_env_overrides, load_or_make_benchmark
 from lasmp.eval.run import run_benchmark
@@ -30,10 +32,14 @@ def main(argv=None) -> dict:
     bench = load_or_make_benchmark(DEFAULT_BENCHMARK)
     out, episodes = {"episodes": args.episodes, "batch_envs": args.batch_envs}, {}
     for shrink in (False, True):
-        env = MovingPlatformEnv(eval_env_overrides(args.batch_envs, 0))
+        env = MovingPlatformEnv(
+            build_env_cfg(eval_env_overrides(args.batch_envs, 0), schema=MovingPlatformCfg)
+        )
         zeros = torch.zeros(env.num_envs, env.num_actions)
         start = time.perf_counter()
-        run = run_benchmark(env, lambda obs, zeros=zeros: zeros, bench, args.episodes, progress=False, shrink_tail=shrink)
+        run = run_benchmark(
+            env, lambda obs, zeros=zeros: zeros, bench, args.episodes, progress=False, shrink_tail=shrink
+        )
         key = "shrink" if shrink else "full"
         out[f"{key}_wall_s"] = time.perf_counter() - start
         out[f"{key}_env_steps"] = env.sim.env_steps

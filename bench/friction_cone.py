@@ -1,7 +1,7 @@
-"""Is friction isotropic (SPEC §2)? The tilt at which a block and the standing A1 start to slide on a
+"""Is friction isotropic (docs/world.md, The robot)? The tilt at which a block and the standing A1 start to slide on a
 slowly tilting platform, per downhill direction and contact setting, against atan(mu).
 
-World: the moving-platform world of `lasmp/envs/scene.py` (its options, default solref/solimp, the
+World: the moving-platform world of `lasmp/envs/moving_platform/scene.py` (its options, default solref/solimp, the
 platform's box, the feet's priority-1 friction), built by its own builder. Block runs delete the
 robot and add a 12 kg block on four 0.02 m sphere feet like the A1's (condim 3), 0.2 m apart, its
 axes the platform's; robot runs keep the A1, facing +x, under its own position servos (PD to
@@ -54,8 +54,8 @@ import mujoco
 import numpy as np
 
 from lasmp.config import SimCfg
-from lasmp.envs import scene
-from lasmp.envs.moving_platform.cfg import PlatformCfg
+from lasmp.envs.moving_platform import scene
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg, PlatformCfg
 from lasmp.robots import a1
 
 # name -> (cone, impratio, noslip_iterations); "pyramidal" is today's setting, the cost reference
@@ -400,14 +400,14 @@ def env_cost(settings: list[str], num_envs: int, steps: int, rounds: int) -> dic
     """Moving-platform env policy steps (Stand Still), settings interleaved per round."""
     import torch
 
+    from lasmp.config import build_env_cfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
     envs = {}
     for s in settings:
         cone, impratio, noslip = SETTINGS[s]
-        env = MovingPlatformEnv(
-            {"num_envs": num_envs, "sim": {"cone": cone, "impratio": impratio, "noslip_iterations": noslip}}
-        )
+        sim = {"cone": cone, "impratio": impratio, "noslip_iterations": noslip}
+        env = MovingPlatformEnv(build_env_cfg({"num_envs": num_envs, "sim": sim}, schema=MovingPlatformCfg))
         env.reset()
         envs[s] = (env, [], [])
     actions = torch.zeros(num_envs, 12)

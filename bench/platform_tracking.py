@@ -21,6 +21,8 @@ import sys
 
 import numpy as np
 
+from lasmp.config import build_env_cfg
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.eval.cli import DEFAULT_BENCHMARK, eval_env_overrides, load_or_make_benchmark
 from lasmp.eval.run import BenchmarkSource
@@ -32,7 +34,7 @@ def measure(episodes: int, factors: tuple[float, float] | None) -> dict:
     if factors is not None:
         bench.robots.platform_kp_factor[:] = factors[0]
         bench.robots.platform_kd_factor[:] = factors[1]
-    env = MovingPlatformEnv(eval_env_overrides(episodes, 0))
+    env = MovingPlatformEnv(build_env_cfg(eval_env_overrides(episodes, 0), schema=MovingPlatformCfg))
     env.episode_source = BenchmarkSource(bench, episodes, episodes)
     env.reset()
     rec = record_platform(env)
@@ -48,14 +50,19 @@ def measure(episodes: int, factors: tuple[float, float] | None) -> dict:
     t_s = env.max_episode_length * env.dt_s
     plf, ref = length(rec["q"][:, :, :3])[complete], length(rec["ref"][:, :, :3])[complete]
     return {
-        "episodes": episodes, "factors": "benchmark robots" if factors is None else list(factors),
+        "episodes": episodes,
+        "factors": "benchmark robots" if factors is None else list(factors),
         "coverage": float(live.mean()),
-        "translation_error_rms_m": float(np.sqrt(np.mean(et**2))), "translation_error_max_m": float(et.max()),
-        "rotation_error_rms_rad": float(np.sqrt(np.mean(er**2))), "rotation_error_max_rad": float(er.max()),
+        "translation_error_rms_m": float(np.sqrt(np.mean(et**2))),
+        "translation_error_max_m": float(et.max()),
+        "rotation_error_rms_rad": float(np.sqrt(np.mean(er**2))),
+        "rotation_error_max_rad": float(er.max()),
         "complete_episodes": int(complete.sum()),
-        "platform_path_length_m": float(plf.mean()), "reference_path_length_m": float(ref.mean()),
-        "platform_mean_speed_mps": float(plf.mean() / t_s), "reference_mean_speed_mps": float(ref.mean() / t_s),
-    }  # fmt: skip
+        "platform_path_length_m": float(plf.mean()),
+        "reference_path_length_m": float(ref.mean()),
+        "platform_mean_speed_mps": float(plf.mean() / t_s),
+        "reference_mean_speed_mps": float(ref.mean() / t_s),
+    }
 
 
 def main(argv=None) -> int:

@@ -19,7 +19,9 @@ import tempfile
 import numpy as np
 import torch
 
+from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as T
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
 RATE_RAD_S = 0.08
@@ -31,8 +33,15 @@ def fall_tilt(axis: str, yaw: float, sim: dict, path: str) -> dict:
     poses = np.zeros((1, len(t), 6))
     poses[0, :, T.POSE_NAMES.index(axis)] = RATE_RAD_S * t
     T.save(path, T.from_samples(t, poses))
-    env = MovingPlatformEnv({"num_envs": 1, "domain_rand": {"enabled": False}, "curriculum": {"enabled": False},
-                             "trajectory": {"file": path}, "init_state": {"yaw_range_rad": [yaw, yaw]}, "sim": sim})  # fmt: skip
+    overrides = {
+        "num_envs": 1,
+        "domain_rand": {"enabled": False},
+        "curriculum": {"enabled": False},
+        "trajectory": {"file": path},
+        "init_state": {"yaw_range_rad": [yaw, yaw]},
+        "sim": sim,
+    }
+    env = MovingPlatformEnv(build_env_cfg(overrides, schema=MovingPlatformCfg))
     env.reset()
     creep, tilt = None, 0.0
     for _ in range(env.max_episode_length):
@@ -45,8 +54,13 @@ def fall_tilt(axis: str, yaw: float, sim: dict, path: str) -> dict:
         if creep is None and tilt >= CREEP_AT_RAD:
             creep = float(np.linalg.norm(env.readout.p_body_p[0, :2].numpy()))
     fell = bool(done[0]) and not bool(extras["time_outs"][0])
-    return {"axis": axis, "robot_yaw_deg": round(np.degrees(yaw)), "fell": fell,
-            "tilt_at_fall_rad": tilt if fell else None, f"creep_at_{CREEP_AT_RAD}_rad_m": creep}  # fmt: skip
+    return {
+        "axis": axis,
+        "robot_yaw_deg": round(np.degrees(yaw)),
+        "fell": fell,
+        "tilt_at_fall_rad": tilt if fell else None,
+        f"creep_at_{CREEP_AT_RAD}_rad_m": creep,
+    }
 
 
 def main(argv=None) -> int:
@@ -58,8 +72,11 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     sim = {"cone": args.cone, "impratio": args.impratio, "noslip_iterations": args.noslip}
     with tempfile.TemporaryDirectory() as tmp:
-        rows = [fall_tilt(axis, yaw, sim, os.path.join(tmp, "ramp.npz"))
-                for axis in ("roll", "pitch") for yaw in (0.0, np.pi / 2)]  # fmt: skip
+        rows = [
+            fall_tilt(axis, yaw, sim, os.path.join(tmp, "ramp.npz"))
+            for axis in ("roll", "pitch")
+            for yaw in (0.0, np.pi / 2)
+        ]
     out = {"sim": sim, "cases": rows}
     print(json.dumps(out) if args.json else "\n".join(map(str, rows)))
     return 0

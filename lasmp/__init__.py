@@ -4,8 +4,8 @@ import os
 
 # torch's OpenMP threads (libgomp) spin for a while after each parallel region before they sleep. In
 # training the policy's forward pass runs right before the physics step, so the spinning threads took
-# cores from MuJoCo's own worker threads: on 2 cores the physics ran 8 % slower (README, "The OpenMP
-# spin, the env step and the learner"). A short spin still bridges the learner's back-to-back parallel
+# cores from MuJoCo's own worker threads and slowed the physics (measured: docs/performance.md,
+# "Threads"). A short spin still bridges the learner's back-to-back parallel
 # regions. libgomp reads the variable when torch loads it, so it is set on importing lasmp (before
 # torch); a value already set wins.
 os.environ.setdefault("GOMP_SPINCOUNT", "10000")

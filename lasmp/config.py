@@ -220,7 +220,8 @@ def build_env_cfg(overrides: Mapping[str, Any] | None = None, *, schema: type[En
     """Defaults of `schema` (a task's env config, e.g. `MovingPlatformCfg`) merged with a nested dict of
     overrides, validated.
 
-    Unknown keys raise `ConfigError` naming the key; values are type-checked by OmegaConf.
+    Unknown keys raise `ConfigError` naming the key; values are type-checked by OmegaConf. This is where
+    an env config is validated: the envs take the dataclass only and do not validate it again.
     """
     base = OmegaConf.structured(schema)
     try:

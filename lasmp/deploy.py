@@ -23,6 +23,7 @@ from lasmp.algo.checkpoint import (
     read_checkpoint,
     set_rng_state,
 )
+from lasmp.envs.registry import make_env
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
 
 
@@ -68,19 +69,18 @@ def load_policy(path, seed: int = 0) -> Deployed:
     return Deployed(build_policy(data, cfg), cfg, data)
 
 
-def load_deploy_env(path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None,
-                    env_overrides: dict | None = None):  # fmt: skip
+def load_deploy_env(
+    path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None, env_overrides: dict | None = None
+):
     """(env, policy, cfg, checkpoint): `load_policy` plus an env of the checkpoint's task with
     `num_envs` envs (and a trajectory file, and nested env overrides). The env takes the
     checkpoint's curriculum state and random state (not its envs' running state: its size may
     differ) and is reset, so its first episodes already use the checkpoint's curriculum."""
-    from lasmp.train import make_env  # TEMP until the registry lands
-
     data = read_checkpoint(path)
     cfg = checkpoint_cfg(data, num_envs, seed, trajectories, env_overrides)
     policy = build_policy(data, cfg)
     torch.manual_seed(cfg.seed)
-    env = make_env(cfg)
+    env = make_env(cfg.task, cfg.env, cfg.device)
     check_compatible(data, env)
     where = data["path"]
     try:
@@ -89,6 +89,8 @@ def load_deploy_env(path, num_envs: int = 1, seed: int = 0, trajectories: str | 
         if data.get("rng_state"):
             set_rng_state(data["rng_state"], env.rng)
     except (RuntimeError, ValueError, KeyError, TypeError, IndexError) as err:
-        raise CheckpointError(f"checkpoint {where}: its env or random state does not fit this env: {err}") from err
+        raise CheckpointError(
+            f"checkpoint {where}: its env or random state does not fit this env: {err}"
+        ) from err
     env.reset()
     return env, policy, cfg, data

@@ -71,8 +71,13 @@ def unpack(saved, like=None, device: torch.device | str | None = None, name: str
         like = like if isinstance(like, dict) else {}
         return {k: unpack(v, like.get(k), device, f"{name}.{k}", classes) for k, v in saved.items()}
     if isinstance(saved, (list, tuple)):
-        likes = list(like) if isinstance(like, (list, tuple)) and len(like) == len(saved) else [None] * len(saved)
-        items = [unpack(v, w, device, f"{name}[{i}]", classes) for i, (v, w) in enumerate(zip(saved, likes, strict=True))]
+        likes = (
+            list(like) if isinstance(like, (list, tuple)) and len(like) == len(saved) else [None] * len(saved)
+        )
+        items = [
+            unpack(v, w, device, f"{name}[{i}]", classes)
+            for i, (v, w) in enumerate(zip(saved, likes, strict=True))
+        ]
         return type(saved)(items)
     if isinstance(saved, _SCALARS):
         return saved
@@ -109,8 +114,12 @@ def _unpack_tagged(saved: dict, like, device, name: str, classes):
         out = copy.copy(like)
         known = {f.name for f in dataclasses.fields(like)}
         if set(saved["fields"]) != known:
-            raise PlainStateError(f"{name}: saved fields {sorted(saved['fields'])} differ from {sorted(known)}")
+            raise PlainStateError(
+                f"{name}: saved fields {sorted(saved['fields'])} differ from {sorted(known)}"
+            )
         for field, value in saved["fields"].items():
-            object.__setattr__(out, field, unpack(value, getattr(like, field), device, f"{name}.{field}", classes))
+            object.__setattr__(
+                out, field, unpack(value, getattr(like, field), device, f"{name}.{field}", classes)
+            )
         return out
     raise PlainStateError(f"{name}: unknown stored kind {kind!r}")

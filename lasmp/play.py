@@ -165,8 +165,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--export", choices=("onnx", "jit"), help="write the deployable policy to --out")
     p.add_argument("--out", help="directory for --export")
     p.add_argument("--trajectories", help="a trajectory file (.npz) replayed instead of sampled trajectories")
-    p.add_argument("--scenario", help="a real-motion scenario (e.g. ship_sea_state_4, bus_stop_and_go) on the "
-                   "suite's close-tracking platform drive; --steps defaults to the whole scenario")  # fmt: skip
+    p.add_argument(
+        "--scenario",
+        help="a real-motion scenario (e.g. ship_sea_state_4, bus_stop_and_go) on the "
+        "suite's close-tracking platform drive; --steps defaults to the whole scenario",
+    )
     p.add_argument(
         "--benchmark-episode",
         type=int,
@@ -186,7 +189,7 @@ def scenario_file(name: str) -> tuple[str, dict]:
 
     from lasmp.envs.trajectories import save
     from lasmp.eval.real_motion import suite as rm
-    from lasmp.eval.real_motion.motion import to_trajectories
+    from lasmp.motions.motion import to_trajectories
 
     (motion,) = rm.build_motions([name])
     path = Path(tempfile.mkdtemp(prefix="lasmp-scenario-")) / f"{name}.npz"
@@ -218,20 +221,27 @@ def main(argv: list[str] | None = None) -> int:
     if args.num_envs < 1 or (args.steps is not None and args.steps < 0):
         parser.error("--num-envs must be >= 1 and --steps >= 0")
     if args.viewer and not has_display():
-        print("--viewer needs a display (DISPLAY or WAYLAND_DISPLAY is unset); use --video or --snapshots "
-              "to render offscreen", file=sys.stderr)  # fmt: skip
+        print(
+            "--viewer needs a display (DISPLAY or WAYLAND_DISPLAY is unset); use --video or --snapshots "
+            "to render offscreen",
+            file=sys.stderr,
+        )
         return 2
     try:
         trajectories, overrides = args.trajectories, None
         if args.scenario:
             trajectories, overrides = scenario_file(args.scenario)
         try:
-            env, policy, cfg, data = load_deploy_env(args.checkpoint, args.num_envs, args.seed, trajectories, overrides)
+            env, policy, cfg, data = load_deploy_env(
+                args.checkpoint, args.num_envs, args.seed, trajectories, overrides
+            )
         finally:
             if args.scenario:  # the env holds the motion in memory; the file was only the way in
                 shutil.rmtree(Path(trajectories).parent, ignore_errors=True)
         if args.steps is None:
-            args.steps = env.max_episode_length - 1 if args.scenario else 500  # the last frame before the reset
+            args.steps = (
+                env.max_episode_length - 1 if args.scenario else 500
+            )  # the last frame before the reset
         if args.benchmark_episode is not None:
             use_benchmark_episodes(env, args.benchmark, args.benchmark_episode)
     except (CheckpointError, TrajectoryFileError, ConfigError, ValueError) as err:

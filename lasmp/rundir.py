@@ -132,8 +132,11 @@ def claim(run_dir: str | Path, check: Callable[[Path], None]) -> Iterator[Path]:
             check(run_dir)
             stale = remove_stale_temporaries(run_dir)
             if stale:
-                print(f"removed {len(stale)} temporary file(s) of a save that was killed mid-write: "
-                      f"{describe([p.name for p in stale])}", flush=True)  # fmt: skip
+                print(
+                    f"removed {len(stale)} temporary file(s) of a save that was killed mid-write: "
+                    f"{describe([p.name for p in stale])}",
+                    flush=True,
+                )
             yield run_dir
         finally:
             lock.release()

@@ -27,6 +27,7 @@ from lasmp.algo.checkpoint import CheckpointError, check_finite, is_policy_only,
 from lasmp.algo.runner import LasmpRunner, TrainingFaulted, TrainingInterrupted
 from lasmp.atomic import atomic_open
 from lasmp.config import ConfigError
+from lasmp.envs import registry
 from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.rundir import RunDirError, checkpoints, claim, describe, run_files
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, to_train_cfg
@@ -36,8 +37,17 @@ CFG_DIR = Path(__file__).resolve().parents[1] / "cfg"
 # keys a resume takes from the command, never from the checkpoint's config
 FROM_COMMAND = ("resume", "resume_drop_env_state", "runner.log_dir")
 # keys a resume may change freely: how long and where it runs, on what hardware, how it computes
-RESUME_FREE = FROM_COMMAND + ("runner.", "device", "torch_threads", "env.seed", "env.sim.num_threads",
-                              "algo.precision", "algo.fused_adam", "algo.use_mixed_precision", "algo.compile_mlps")  # fmt: skip
+RESUME_FREE = FROM_COMMAND + (
+    "runner.",
+    "device",
+    "torch_threads",
+    "env.seed",
+    "env.sim.num_threads",
+    "algo.precision",
+    "algo.fused_adam",
+    "algo.use_mixed_precision",
+    "algo.compile_mlps",
+)
 # keys a resume cannot change: why, for the refusal
 RESUME_FIXED = {
     "task": "the checkpoint's networks were trained on its task",
@@ -53,16 +63,9 @@ def seed_everything(seed: int) -> None:
 
 
 def make_env(cfg: TrainCfg):
-    """The task's env. Its tensors live where its physics runs: on the CPU with the cpu backend (the
-    learner may still be on a GPU: the runner moves observations), on `cfg.device` with warp."""
-    device = cfg.device if cfg.env.backend == "warp" else "cpu"
-    if cfg.task == "rough_static":
-        from lasmp.envs.rough_static.env import RoughStaticEnv
-
-        return RoughStaticEnv(cfg.env, device=device)
-    from lasmp.envs.moving_platform.env import MovingPlatformEnv
-
-    return MovingPlatformEnv(cfg.env, device=device)
+    """The task's env (`lasmp.envs.registry`), its tensors where its physics runs (cpu backend: the CPU,
+    even with the learner on a GPU; warp: `cfg.device`)."""
+    return registry.make_env(cfg.task, cfg.env, cfg.device)
 
 
 def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunner:
@@ -76,9 +79,17 @@ def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunne
     if cfg.torch_threads > 0:
         torch.set_num_threads(cfg.torch_threads)
     seed_everything(cfg.seed + rank)
-    env = make_env(cfg if rank == 0 else dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, seed=cfg.seed + rank)))
-    return LasmpRunner(env, rsl_rl_cfg(cfg), log_dir=log_dir, device=cfg.device, full_config=to_plain(cfg),
-                       max_fault_fraction=cfg.runner.max_fault_fraction)  # fmt: skip
+    env = make_env(
+        cfg if rank == 0 else dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, seed=cfg.seed + rank))
+    )
+    return LasmpRunner(
+        env,
+        rsl_rl_cfg(cfg),
+        log_dir=log_dir,
+        device=cfg.device,
+        full_config=to_plain(cfg),
+        max_fault_fraction=cfg.runner.max_fault_fraction,
+    )
 
 
 def to_plain(cfg: TrainCfg) -> dict:
@@ -130,8 +141,11 @@ def resumed_cfg(cfg: TrainCfg, data: dict, explicit: set[str] | None) -> TrainCf
     if explicit is None:
         return cfg
     given, saved = flatten(to_plain(cfg)), flatten(data["config"])
-    taken = {k: v for k, v in given.items()
-             if _matches(k, FROM_COMMAND) or k in explicit or any(k.startswith(f"{e}.") for e in explicit)}  # fmt: skip
+    taken = {
+        k: v
+        for k, v in given.items()
+        if _matches(k, FROM_COMMAND) or k in explicit or any(k.startswith(f"{e}.") for e in explicit)
+    }
     _refuse_fixed({k: (saved[k], v) for k, v in taken.items() if k in saved and saved[k] != v})
     merged = OmegaConf.create(data["config"])
     for key, value in taken.items():
@@ -149,8 +163,10 @@ def check_resume(cfg: TrainCfg, data: dict) -> dict[str, tuple]:
     the keys it changes from the checkpoint's config, {key: (saved, now)}."""
     path = data["path"]
     if is_policy_only(data):
-        raise CheckpointError(f"{path} is a policy checkpoint (no optimizer states): play or evaluate it; to "
-                              "resume training, give the run's own model_<N>.pt")  # fmt: skip
+        raise CheckpointError(
+            f"{path} is a policy checkpoint (no optimizer states): play or evaluate it; to "
+            "resume training, give the run's own model_<N>.pt"
+        )
     try:
         check_finite({k: data[k] for k in data if k.endswith("state_dict")}, f"checkpoint {path}")
     except FloatingPointError as err:
@@ -200,8 +216,11 @@ def apply_learning_rates(runner: LasmpRunner, changed: dict[str, tuple]) -> None
             group["lr"] = new
         if attr == "optimizer":
             runner.alg.learning_rate = new
-        print(f"resume: {key}={new} (the run's was {old}): the learning rate restarts at {new}, not at the "
-              f"checkpoint's {restored:.4g}", flush=True)  # fmt: skip
+        print(
+            f"resume: {key}={new} (the run's was {old}): the learning rate restarts at {new}, not at the "
+            f"checkpoint's {restored:.4g}",
+            flush=True,
+        )
 
 
 def _check_run_dir(log_dir: Path, data: dict | None):
@@ -250,21 +269,32 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
     with owner:
         runner = make_runner(cfg, str(log_dir) if ranks.is_main else None, ranks.rank)
         if data is not None:
-            keep = {"actor": True, "critic": True, "optimizer": True, "iteration": True,
-                    "env_run_state": not cfg.resume_drop_env_state}  # fmt: skip
+            keep = {
+                "actor": True,
+                "critic": True,
+                "optimizer": True,
+                "iteration": True,
+                "env_run_state": not cfg.resume_drop_env_state,
+            }
             runner.load(data, load_cfg=keep)
             apply_learning_rates(runner, changed)
             others = {k: v for k, v in changed.items() if k not in LEARNING_RATES}
             if others:
-                say("resume: in effect from now on, changed from the run's config: "
-                      + ", ".join(f"{k} {old} -> {new}" for k, (old, new) in others.items()), flush=True)  # fmt: skip
+                say(
+                    "resume: in effect from now on, changed from the run's config: "
+                    + ", ".join(f"{k} {old} -> {new}" for k, (old, new) in others.items()),
+                    flush=True,
+                )
             say(f"resumed from {data['path']} at iteration {runner.current_learning_iteration}", flush=True)
         if ranks.is_main:  # only now, with everything checked, the run directory's config
             with atomic_open(log_dir / "config.yaml", "w") as f:
                 f.write(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
         processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
-        say(f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs{processes}, {cfg.runner.max_iterations} "
-              f"iterations, logs in {log_dir}", flush=True)  # fmt: skip
+        say(
+            f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs{processes}, {cfg.runner.max_iterations} "
+            f"iterations, logs in {log_dir}",
+            flush=True,
+        )
         last = (
             runner.current_learning_iteration + cfg.runner.max_iterations - 1
         )  # the iteration this command ends at

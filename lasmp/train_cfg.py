@@ -17,19 +17,15 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf
 
-from lasmp.config import BaseEnvCfg, ConfigError, build_env_cfg, check_known_keys
-from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
-from lasmp.envs.rough_static.cfg import RoughStaticCfg
+from lasmp.config import ConfigError, build_env_cfg, check_known_keys
+from lasmp.envs import registry
+from lasmp.envs.registry import env_schema
 
 ACTOR_CLASS = "lasmp.modules.policy:LasmpActor"
 CRITIC_CLASS = "rsl_rl.models:MLPModel"
 ALGORITHM_CLASS = "lasmp.algo.ppo_roa:PPOROA"
-# task -> its env config dataclass, also the name of its option in the Hydra config group `env`
-ENV_SCHEMAS: dict[str, type[BaseEnvCfg]] = {
-    "moving_platform": MovingPlatformCfg,
-    "rough_static": RoughStaticCfg,
-}
-TASKS = tuple(ENV_SCHEMAS)
+# the tasks of the task registry (lasmp/envs/registry.py), also their options in the Hydra config group `env`
+TASKS = tuple(registry.TASKS)
 PRECISIONS = ("auto", "float32", "bfloat16")  # algo.precision (lasmp/algo/precision.py)
 # runner.logger -> (rsl_rl's writer class, the package it imports, the extra that installs it); docs/logging.md
 LOGGERS: dict[str, tuple[str, str, str] | None] = {
@@ -37,13 +33,6 @@ LOGGERS: dict[str, tuple[str, str, str] | None] = {
     "wandb": ("WandbLogWriter", "wandb", "wandb"),
     "neptune": ("NeptuneLogWriter", "neptune", "neptune"),
 }
-
-
-def env_schema(task: str) -> type[BaseEnvCfg]:
-    """The env config dataclass of a task."""
-    if task not in ENV_SCHEMAS:
-        raise ConfigError(f"task must be one of {list(TASKS)}, got {task!r}")
-    return ENV_SCHEMAS[task]
 
 
 @dataclass
@@ -76,16 +65,14 @@ class AlgoCfg:
     max_grad_norm: float = 1.0
     desired_kl: float = 0.01
     schedule: str = "adaptive"
-    roa_lambda: float = 0.2  # λ of L_imp, SPEC §9
+    roa_lambda: float = 0.2  # λ of L_imp, docs/method.md, Learning
     estimator_learning_rate: float = 1e-3  # (ours) the estimators' own Adam
     estimator_epochs: int = 1  # (ours) ROA passes over each rollout
-    # (ours, SPEC §9 leaves it open) close the train/deploy gap: from iteration estimate_rollout_start
+    # (ours: the paper leaves it open) close the train/deploy gap: from iteration estimate_rollout_start
     # on, every estimate_rollout_every-th iteration's rollout *and* PPO update act on the estimators'
     # outputs (detached) instead of the privileged inputs; 0 = never (the paper's literal reading).
-    # Why: a policy that only ever saw true velocities walks off a still platform in deployment
-    # (README "Real-motion suite", the deployment gap); acting on the estimates in every iteration
-    # rather than every 2nd took the collision rate on Xi_eval at 450 iterations from 0.224 to 0.091
-    # (README "Results"; runs before that finding used 2)
+    # Why, and what every iteration rather than every 2nd gained: docs/method.md, "Training on the
+    # estimates", and docs/results.md, "The earlier schedule".
     estimate_rollout_every: int = 1
     estimate_rollout_start: int = 100
     # (ours) how the learner computes (lasmp/algo/precision.py): auto = bfloat16 autocast where the
@@ -124,13 +111,15 @@ class RunnerCfg:
 class TrainCfg:
     task: str = "moving_platform"
     seed: int = 0
-    device: str = "cpu"  # where the learner runs, and the physics with env.backend=warp (cpu backend: the CPU)
+    device: str = (
+        "cpu"  # where the learner runs, and the physics with env.backend=warp (cpu backend: the CPU)
+    )
     torch_threads: int = 0  # CPU threads of torch for the learner; 0 = torch's default (all cores)
     resume: str | None = None  # a checkpoint file or a run directory (its latest model_<N>.pt)
     # on resume, start every env's episode anew instead of restoring the envs' running state: needed
     # when env.num_envs differs from the checkpoint's (the resume is then not exact)
     resume_drop_env_state: bool = False
-    # the task's env config, ENV_SCHEMAS[task]. Hydra composes it from the `env` group (typed: unknown keys
+    # the task's env config, env_schema(task). Hydra composes it from the `env` group (typed: unknown keys
     # fail naming them); a plain dict (a checkpoint's saved config) is built with the task's schema by
     # lasmp.train.to_train_cfg. Any, not BaseEnvCfg: a task's keys must merge into it before its type is known
     env: Any = field(default_factory=dict)
@@ -143,8 +132,8 @@ def register_configs() -> None:
     """`train_schema` (the base of cfg/config.yaml) and one option of the group `env` per task."""
     store = ConfigStore.instance()
     store.store(name="train_schema", node=TrainCfg)
-    for task, schema in ENV_SCHEMAS.items():
-        store.store(group="env", name=task, node=schema)
+    for task in TASKS:
+        store.store(group="env", name=task, node=env_schema(task))
 
 
 def validate_train_cfg(cfg: TrainCfg) -> None:
@@ -183,9 +172,7 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
             f"{a.estimate_rollout_every}, {a.estimate_rollout_start}"
         )
     if a.precision not in PRECISIONS:
-        raise ConfigError(
-            f"algo.precision must be one of {' | '.join(PRECISIONS)}, got {a.precision!r}"
-        )
+        raise ConfigError(f"algo.precision must be one of {' | '.join(PRECISIONS)}, got {a.precision!r}")
     if r.num_steps_per_env < 1 or r.max_iterations < 0 or r.save_interval < 1:
         raise ConfigError(
             "runner.num_steps_per_env and runner.save_interval must be >= 1, max_iterations >= 0"

@@ -26,7 +26,7 @@ RESULTS = ROOT / "results" / "study"
 SEEDS = (0, 1, 2)
 BUDGET = 450
 HEADLINE = 1000  # LAS-MP's three seeds continue to the cpu preset's length
-# method -> train.py overrides (the ablations of SPEC §12 are policy groups; R-S its own task)
+# method -> train.py overrides (the ablations of docs/method.md are policy groups; R-S its own task)
 METHODS = {
     "lasmp": [],
     "lasmp_centre": ["env.rewards.h_des_from=centre"],
@@ -62,8 +62,14 @@ def train(method: str, seed: int, until: int = BUDGET) -> None:
     if done >= until:
         print(f"{method} seed {seed}: {done} iterations done (>= {until})")
         return
-    cmd = [sys.executable, "train.py", *METHODS[method], f"seed={seed}", "runner.save_interval=25",
-           f"runner.log_dir={d.relative_to(ROOT)}"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "train.py",
+        *METHODS[method],
+        f"seed={seed}",
+        "runner.save_interval=25",
+        f"runner.log_dir={d.relative_to(ROOT)}",
+    ]
     if done > 0:
         cmd += [f"resume={d.relative_to(ROOT)}", f"runner.max_iterations={until - done}"]
     else:
@@ -86,8 +92,14 @@ def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
         if (out / "metrics.json").exists():
             print(f"{out} done")
             continue
-        cmd = [sys.executable, "evaluate.py", "--checkpoint", str(ckpt.relative_to(ROOT)), "--out",
-               str(out.relative_to(ROOT))] + (["--controller", controller] if controller else [])  # fmt: skip
+        cmd = [
+            sys.executable,
+            "evaluate.py",
+            "--checkpoint",
+            str(ckpt.relative_to(ROOT)),
+            "--out",
+            str(out.relative_to(ROOT)),
+        ] + (["--controller", controller] if controller else [])
         execute(cmd, run_dir(method, seed).with_suffix(".commands"))
 
 

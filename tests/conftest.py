@@ -18,6 +18,12 @@ def eager_learners(request, monkeypatch):
     real = ppo_roa.resolve_precision
 
     def eager(precision, device, use_mixed_precision=None, fused_adam=None, compile_mlps=None):
-        return real(precision, device, use_mixed_precision, fused_adam, False if compile_mlps is None else compile_mlps)
+        return real(
+            precision,
+            device,
+            use_mixed_precision,
+            fused_adam,
+            False if compile_mlps is None else compile_mlps,
+        )
 
     monkeypatch.setattr(ppo_roa, "resolve_precision", eager)

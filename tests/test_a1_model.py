@@ -137,7 +137,7 @@ def test_nominal_hips_splay_outward(model):
 
 def test_nominal_trunk_height(model):
     h = a1.nominal_trunk_height_m(model)
-    print(f"nominal trunk height above surface = {h:.4f} m (SPEC desired 0.27 m)")
+    print(f"nominal trunk height above surface = {h:.4f} m (the paper's desired 0.27 m)")
     assert 0.27 <= h <= 0.33
 
 
@@ -208,7 +208,11 @@ PUBLISHED_LEG = {
     ),
     "foot": (0.06, (0.0, 0.0, 0.0), (9.6e-06, 9.6e-06, 9.6e-06, 0.0, 0.0, 0.0)),
 }
-PUBLISHED_WHOLE_BODY_INERTIA = (0.158, 0.400, 0.428)  # kg m^2 about the CoM, trunk frame, q_nominal (SPEC §2)
+PUBLISHED_WHOLE_BODY_INERTIA = (
+    0.158,
+    0.400,
+    0.428,
+)  # kg m^2 about the CoM, trunk frame, q_nominal (docs/world.md, The robot)
 PUBLISHED_TOTAL_MASS_KG = 12.45
 PUBLISHED_JOINT_FRICTION_NM = 0.2  # urdf/a1.urdf <dynamics friction="0.2" damping="0.01"/>
 PUBLISHED_JOINT_DAMPING = 0.01

@@ -47,10 +47,17 @@ register_configs()
 
 # a tiny run: 4 envs, small networks, the float32 learner (no compilation), one iteration
 TINY = {
-    "env.num_envs": "4", "runner.num_steps_per_env": "5", "runner.save_interval": "1", "runner.max_iterations": "1",
-    "policy.actor_hidden_dims": "[32,32,32]", "policy.critic_hidden_dims": "[32,32]", "algo.num_mini_batches": "2",
-    "algo.num_learning_epochs": "1", "algo.precision": "float32", "torch_threads": "1",
-}  # fmt: skip
+    "env.num_envs": "4",
+    "runner.num_steps_per_env": "5",
+    "runner.save_interval": "1",
+    "runner.max_iterations": "1",
+    "policy.actor_hidden_dims": "[32,32,32]",
+    "policy.critic_hidden_dims": "[32,32]",
+    "algo.num_mini_batches": "2",
+    "algo.num_learning_epochs": "1",
+    "algo.precision": "float32",
+    "torch_threads": "1",
+}
 
 
 def tiny(*overrides: str) -> list[str]:
@@ -507,10 +514,18 @@ def test_a_second_training_into_a_locked_run_directory_names_the_first_ones_pid(
     run = tmp_path / "run"
     run.mkdir()
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time\nfrom lasmp.rundir import RunLock\nRunLock(sys.argv[1]).acquire()\n"
-         "print('locked', flush=True)\ntime.sleep(120)", str(run)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-c",
+            "import sys, time\nfrom lasmp.rundir import RunLock\nRunLock(sys.argv[1]).acquire()\n"
+            "print('locked', flush=True)\ntime.sleep(120)",
+            str(run),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
     try:
         line = holder.stdout.readline()
         assert line.strip() == "locked", holder.stderr.read()[-2000:]
@@ -621,8 +636,15 @@ def test_a_diverging_loss_stops_with_one_message_naming_it(tmp_path, monkeypatch
 # -- interruption --------------------------------------------------------------------------------
 def train_py(args: list[str], cwd: Path, **kw) -> subprocess.Popen:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    return subprocess.Popen([sys.executable, str(ROOT / "train.py"), *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=cwd, env=env, **kw)  # fmt: skip
+    return subprocess.Popen(
+        [sys.executable, str(ROOT / "train.py"), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=cwd,
+        env=env,
+        **kw,
+    )
 
 
 def _wait_for(proc: subprocess.Popen, prefix: str, timeout_s: float = 300) -> None:
@@ -639,8 +661,15 @@ def test_a_second_sigterm_exits_at_once_without_a_traceback(tmp_path):
     signum, code = signal.SIGTERM, 143
     run = tmp_path / "run"
     # long iterations (2,000 steps each), so that the second signal arrives while the first waits
-    proc = train_py(tiny("runner.num_steps_per_env=2000", "runner.max_iterations=50", "runner.save_interval=1000",
-                         f"runner.log_dir={run}"), tmp_path)  # fmt: skip
+    proc = train_py(
+        tiny(
+            "runner.num_steps_per_env=2000",
+            "runner.max_iterations=50",
+            "runner.save_interval=1000",
+            f"runner.log_dir={run}",
+        ),
+        tmp_path,
+    )
     try:
         _wait_for(proc, "training ")
         time.sleep(1.0)
@@ -788,12 +817,12 @@ CHECKPOINT_TOOL_CASES = {
     "info of a truncated file": (
         lambda d: ["info", str(_truncated(d / "run" / "model_1.pt", d / "t.pt"))],
         "unreadable",
-    ),  # fmt: skip
+    ),
     "info of a text file": (lambda d: ["info", str(_write(b"text")(None, d / "t.pt"))], "unreadable"),
     "info of a hostile file": (
         lambda d: ["info", str(hostile_checkpoint(d / "h.pt", d / "marker"))],
         "pickled Python objects",
-    ),  # fmt: skip
+    ),
     "convert without --trust": (
         lambda d: ["convert", str(d / "run" / "model_1.pt"), str(d / "c.pt")],
         "--trust",
@@ -830,13 +859,22 @@ def test_info_of_a_policy_checkpoint_says_so(base_run, tmp_path):
 # -- trajectory files ----------------------------------------------------------------------------
 def _generated(n: int = 3) -> dict:
     traj = trj.sample(n, trj.ranges_for_split("test"), np.random.default_rng(0))
-    return {"format": np.array("lasmp-trajectories"), "version": np.array(2), "kind": np.array("waypoints"),
-            **trj.waypoint_arrays(traj)}  # fmt: skip
+    return {
+        "format": np.array("lasmp-trajectories"),
+        "version": np.array(2),
+        "kind": np.array("waypoints"),
+        **trj.waypoint_arrays(traj),
+    }
 
 
 def _samples(t, poses) -> dict:
-    return {"format": np.array("lasmp-trajectories"), "version": np.array(2), "kind": np.array("samples"),
-            "t_s": np.asarray(t, dtype=np.float64), "poses": np.asarray(poses, dtype=np.float64)}  # fmt: skip
+    return {
+        "format": np.array("lasmp-trajectories"),
+        "version": np.array(2),
+        "kind": np.array("samples"),
+        "t_s": np.asarray(t, dtype=np.float64),
+        "poses": np.asarray(poses, dtype=np.float64),
+    }
 
 
 def _line_samples(k: int = 11, duration_s: float = 10.0) -> tuple[np.ndarray, np.ndarray]:
@@ -974,7 +1012,7 @@ TRAJECTORY_ABSURD = {
     "a whole generated path in 0.1 s": _traj_case("waypoints", _path_in_a_tenth),
     "a whole user path in 0.1 s": _traj_case(
         "samples", lambda a: a.update(t_s=a["t_s"] / 100.0, poses=a["poses"] * 10.0)
-    ),  # fmt: skip
+    ),
     "100 m in a second": _traj_case("samples", _fast_jump),
 }
 
@@ -989,8 +1027,9 @@ def test_a_trajectory_far_outside_any_physical_motion_is_refused_or_warned_about
         except trj.TrajectoryFileError as err:
             assert "physical range" in str(err) and str(path) in str(err)
             return
-    assert any("physical range" in str(w.message) and str(path) in str(w.message) for w in seen), \
-        [str(w.message) for w in seen]  # fmt: skip
+    assert any("physical range" in str(w.message) and str(path) in str(w.message) for w in seen), [
+        str(w.message) for w in seen
+    ]
 
 
 @pytest.mark.parametrize("kind", ["a generated set", "a 360 m train ride at 18 m/s"])
@@ -1054,7 +1093,7 @@ BENCHMARK_REFUSED = {
     "damping of 11 joints": (
         _bench_case(lambda a: a.update(robot_joint_kd=a["robot_joint_kd"][:, :11])),
         "wrong shape",
-    ),  # fmt: skip
+    ),
     "a negative trunk mass": (_bench_case(_scale("robot_trunk_mass_kg", -4.0)), "robot_trunk_mass_kg"),
     "a trunk without mass": (_bench_case(_scale("robot_trunk_mass_kg", 0.0)), "robot_trunk_mass_kg"),
     "a trunk of 1,000 t": (_bench_case(_scale("robot_trunk_mass_kg", 1e6)), "robot_trunk_mass_kg"),
@@ -1097,8 +1136,19 @@ def evaluate(*argv: str) -> Outcome:
 
 
 def _stand_still(bench: Path, out_dir: Path, *extra: str) -> Outcome:
-    return evaluate("--controller", "stand_still", "--benchmark", str(bench), "--num-trajectories", "1",
-                    "--batch-envs", "1", "--out", str(out_dir), *extra)  # fmt: skip
+    return evaluate(
+        "--controller",
+        "stand_still",
+        "--benchmark",
+        str(bench),
+        "--num-trajectories",
+        "1",
+        "--batch-envs",
+        "1",
+        "--out",
+        str(out_dir),
+        *extra,
+    )
 
 
 def test_evaluate_refuses_a_benchmark_robot_with_negative_friction_before_playing(tmp_path):
@@ -1110,12 +1160,22 @@ def test_evaluate_refuses_a_benchmark_robot_with_negative_friction_before_playin
 
 @pytest.mark.parametrize("case", ["a missing checkpoint", "a truncated checkpoint", "a hostile checkpoint"])
 def test_evaluate_refuses_a_bad_checkpoint_with_one_message(base_run, tmp_path, case):
-    path = {"a missing checkpoint": lambda: tmp_path / "nope.pt",
-            "a truncated checkpoint": lambda: _truncated(base_run / "model_1.pt", tmp_path / "t.pt"),
-            "a hostile checkpoint": lambda: hostile_checkpoint(tmp_path / "h.pt", tmp_path / "marker")}[case]()  # fmt: skip
+    path = {
+        "a missing checkpoint": lambda: tmp_path / "nope.pt",
+        "a truncated checkpoint": lambda: _truncated(base_run / "model_1.pt", tmp_path / "t.pt"),
+        "a hostile checkpoint": lambda: hostile_checkpoint(tmp_path / "h.pt", tmp_path / "marker"),
+    }[case]()
     bench = _bench_case(lambda a: None)(tmp_path / "bench.npz")
-    out = evaluate("--checkpoint", str(path), "--benchmark", str(bench), "--num-trajectories", "1",
-                   "--out", str(tmp_path / "eval"))  # fmt: skip
+    out = evaluate(
+        "--checkpoint",
+        str(path),
+        "--benchmark",
+        str(bench),
+        "--num-trajectories",
+        "1",
+        "--out",
+        str(tmp_path / "eval"),
+    )
     refused(out, re.escape(path.name))
     assert not (tmp_path / "marker").exists() and files(tmp_path / "eval") == {}
 

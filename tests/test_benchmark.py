@@ -129,7 +129,9 @@ def test_wrong_format(saved, tmp_path):
 
 def test_old_version_is_refused_with_the_command_to_regenerate(saved, tmp_path):
     p = _rewrite(saved, tmp_path / "v1.npz", lambda d: {**d, "version": np.array(1, dtype=np.int64)})
-    with pytest.raises(B.BenchmarkFileError, match=r"v1\.npz: unsupported version 1, expected 2.*benchmark generate"):
+    with pytest.raises(
+        B.BenchmarkFileError, match=r"v1\.npz: unsupported version 1, expected 2.*benchmark generate"
+    ):
         B.load(p)
 
 
@@ -160,10 +162,27 @@ def test_wrong_shape(saved, tmp_path):
 def test_cli_generate_json(tmp_path):
     out = tmp_path / "cli.npz"
     res = subprocess.run(
-        [sys.executable, "-m", "lasmp.eval.benchmark", "generate", "--out", str(out), "--seed", "3",
-         "--num-trajectories", str(M), "--num-robots", str(R), "--json"],
-        capture_output=True, text=True, check=True, cwd=REPO, timeout=120,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "lasmp.eval.benchmark",
+            "generate",
+            "--out",
+            str(out),
+            "--seed",
+            "3",
+            "--num-trajectories",
+            str(M),
+            "--num-robots",
+            str(R),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=REPO,
+        timeout=120,
+    )
     info = json.loads(res.stdout)
     assert info["sha256"] == B.sha256(out) and info["bytes"] == out.stat().st_size
     assert info["num_trajectories"] == M and info["num_robots"] == R and info["seed"] == 3

@@ -37,18 +37,40 @@ class _Payload:
 
 def hostile_checkpoint(path: Path, marker: Path) -> Path:
     """A file that the old loader (weights_only=False) accepted as a checkpoint, with a payload."""
-    data = {"format": CHECKPOINT_FORMAT, "actor_state_dict": {}, "critic_state_dict": {}, "config": {},
-            "obs_layout": {}, "num_actions": 12, "iter": 0, "env_state": {"payload": _Payload(marker)}}  # fmt: skip
+    data = {
+        "format": CHECKPOINT_FORMAT,
+        "actor_state_dict": {},
+        "critic_state_dict": {},
+        "config": {},
+        "obs_layout": {},
+        "num_actions": 12,
+        "iter": 0,
+        "env_state": {"payload": _Payload(marker)},
+    }
     torch.save(data, path)
     return path
 
 
 ENTRY_POINTS = {
     "play": lambda ckpt: [sys.executable, str(ROOT / "play.py"), "--checkpoint", str(ckpt), "--steps", "1"],
-    "evaluate": lambda ckpt: [sys.executable, str(ROOT / "evaluate.py"), "--checkpoint", str(ckpt),
-                              "--num-trajectories", "1", "--batch-envs", "1"],  # fmt: skip
-    "train_resume": lambda ckpt: [sys.executable, str(ROOT / "train.py"), f"resume={ckpt}", "env.num_envs=4",
-                                  "runner.max_iterations=1", f"runner.log_dir={ckpt.parent / 'run'}"],  # fmt: skip
+    "evaluate": lambda ckpt: [
+        sys.executable,
+        str(ROOT / "evaluate.py"),
+        "--checkpoint",
+        str(ckpt),
+        "--num-trajectories",
+        "1",
+        "--batch-envs",
+        "1",
+    ],
+    "train_resume": lambda ckpt: [
+        sys.executable,
+        str(ROOT / "train.py"),
+        f"resume={ckpt}",
+        "env.num_envs=4",
+        "runner.max_iterations=1",
+        f"runner.log_dir={ckpt.parent / 'run'}",
+    ],
     "checkpoint_info": lambda ckpt: [sys.executable, "-m", "lasmp.algo.checkpoint", "info", str(ckpt)],
 }
 
@@ -86,9 +108,19 @@ def tiny(tmp_path, **over):
 @pytest.mark.parametrize("task", ["moving_platform", "rough_static"])
 def test_a_full_checkpoint_loads_with_weights_only_and_holds_no_project_class(tmp_path, task):
     with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
-        cfg = compose("config", overrides=[f"task={task}", "env.num_envs=4", "runner.max_iterations=2",
-                                           f"runner.log_dir={tmp_path}", "torch_threads=1", "runner.save_interval=1",
-                                           "runner.num_steps_per_env=5", "policy.actor_hidden_dims=[32,32,32]"])  # fmt: skip
+        cfg = compose(
+            "config",
+            overrides=[
+                f"task={task}",
+                "env.num_envs=4",
+                "runner.max_iterations=2",
+                f"runner.log_dir={tmp_path}",
+                "torch_threads=1",
+                "runner.save_interval=1",
+                "runner.num_steps_per_env=5",
+                "policy.actor_hidden_dims=[32,32,32]",
+            ],
+        )
     train(cfg)
     data = torch.load(tmp_path / "model_1.pt", weights_only=True)  # raises on any pickled class
     assert data["env_state"]["run"]["format"] == 3
@@ -114,15 +146,31 @@ class _Pair:
 
 def test_plain_state_round_trips_arrays_tensordicts_dataclasses_and_stateful_objects():
     td = TensorDict({"x": torch.arange(6.0).view(3, 2), "y": {"z": torch.ones(3)}}, batch_size=[3])
-    live = {"pair": _Pair(torch.zeros(2), np.zeros(3)), "td": td, "arr": np.arange(4, dtype=np.int32),
-            "none": None, "n": np.float64(2.5), "t": (1, "s"), "dtype": torch.float64}  # fmt: skip
-    saved = {"pair": _Pair(torch.tensor([1.0, 2.0]), np.array([3.0, 4.0, 5.0])), "td": td, "arr": live["arr"],
-             "none": None, "n": np.float64(2.5), "t": (1, "s"), "dtype": torch.float64}  # fmt: skip
+    live = {
+        "pair": _Pair(torch.zeros(2), np.zeros(3)),
+        "td": td,
+        "arr": np.arange(4, dtype=np.int32),
+        "none": None,
+        "n": np.float64(2.5),
+        "t": (1, "s"),
+        "dtype": torch.float64,
+    }
+    saved = {
+        "pair": _Pair(torch.tensor([1.0, 2.0]), np.array([3.0, 4.0, 5.0])),
+        "td": td,
+        "arr": live["arr"],
+        "none": None,
+        "n": np.float64(2.5),
+        "t": (1, "s"),
+        "dtype": torch.float64,
+    }
     back = unpack(pack(saved), live)
     assert torch.equal(back["pair"].a, saved["pair"].a) and np.array_equal(back["pair"].b, saved["pair"].b)
     assert isinstance(back["pair"].b, np.ndarray) and back["arr"].dtype == np.int32
     assert torch.equal(back["td"]["y", "z"], td["y", "z"]) and back["td"].batch_size == td.batch_size
-    assert back["n"] == 2.5 and back["t"] == (1, "s") and back["dtype"] is torch.float64 and back["none"] is None
+    assert (
+        back["n"] == 2.5 and back["t"] == (1, "s") and back["dtype"] is torch.float64 and back["none"] is None
+    )
     assert back["pair"] is not live["pair"]  # a copy of the live instance, not the live one changed
 
 
@@ -143,13 +191,25 @@ def test_an_older_pickled_checkpoint_is_refused_with_the_convert_command_and_con
     data = torch.load(tmp_path / "run" / "model_1.pt", weights_only=True)
     # the format before plain state (2): the running state's objects pickled as they are
     names = env.RUN_STATE + env.TASK_STATE
-    data["env_state"]["run"].update(format=2, sim=env.sim.get_state(),
-                                    attrs=copy.deepcopy({k: getattr(env, k) for k in names}))  # fmt: skip
+    data["env_state"]["run"].update(
+        format=2, sim=env.sim.get_state(), attrs=copy.deepcopy({k: getattr(env, k) for k in names})
+    )
     torch.save(data, tmp_path / "old.pt")
     with pytest.raises(CheckpointError, match="convert --trust"):
         read_checkpoint(tmp_path / "old.pt")
-    refused = subprocess.run([sys.executable, "-m", "lasmp.algo.checkpoint", "convert", str(tmp_path / "old.pt"),
-                              str(tmp_path / "new.pt")], capture_output=True, text=True, timeout=120)  # fmt: skip
+    refused = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "lasmp.algo.checkpoint",
+            "convert",
+            str(tmp_path / "old.pt"),
+            str(tmp_path / "new.pt"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert refused.returncode == 2 and "--trust" in refused.stderr and not (tmp_path / "new.pt").exists()
     convert_trusted(tmp_path / "old.pt", tmp_path / "new.pt")
     fresh = make_runner(tiny(tmp_path / "fresh"), None)

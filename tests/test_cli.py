@@ -15,9 +15,21 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_env_throughput_bench_prints_one_json_object(tmp_path):
     out = subprocess.run(
-        [sys.executable, str(ROOT / "bench" / "env_throughput.py"), "--num-envs", "8", "--steps", "30", "--json"],
-        capture_output=True, text=True, check=True, cwd=tmp_path, timeout=300,
-    )  # fmt: skip
+        [
+            sys.executable,
+            str(ROOT / "bench" / "env_throughput.py"),
+            "--num-envs",
+            "8",
+            "--steps",
+            "30",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=tmp_path,
+        timeout=300,
+    )
     result = json.loads(out.stdout)
     for key in (
         "env_steps_per_s",
@@ -32,7 +44,9 @@ def test_env_throughput_bench_prints_one_json_object(tmp_path):
     assert result["env_steps_per_s"] > 0 and result["raw_steps_per_s"] > 0
     # the env's wall time per step is its physics plus the rest
     env_ms = 8 / result["env_steps_per_s"] * 1e3
-    assert result["env_other_ms_per_step"] == pytest.approx((1 - result["env_physics_share"]) * env_ms, rel=0.02, abs=0.02)
+    assert result["env_other_ms_per_step"] == pytest.approx(
+        (1 - result["env_physics_share"]) * env_ms, rel=0.02, abs=0.02
+    )
     assert result["torch_threads"] == 1
     assert result["raw_samples"] == 30  # one per env step when there are fewer steps than samples
     assert abs(result["ratio"] - result["env_steps_per_s"] / result["raw_steps_per_s"]) < 1e-2
@@ -40,10 +54,23 @@ def test_env_throughput_bench_prints_one_json_object(tmp_path):
 
 def test_train_iteration_bench_prints_the_time_breakdown(tmp_path):
     out = subprocess.run(
-        [sys.executable, str(ROOT / "bench" / "train_iteration.py"), "--num-envs", "8", "--iterations", "1",
-         "--json", "torch_threads=1", "policy.actor_hidden_dims=[32,32,32]"],
-        capture_output=True, text=True, check=True, cwd=tmp_path, timeout=300,
-    )  # fmt: skip
+        [
+            sys.executable,
+            str(ROOT / "bench" / "train_iteration.py"),
+            "--num-envs",
+            "8",
+            "--iterations",
+            "1",
+            "--json",
+            "torch_threads=1",
+            "policy.actor_hidden_dims=[32,32,32]",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=tmp_path,
+        timeout=300,
+    )
     result = json.loads(out.stdout)  # --json: one JSON object and nothing else
     parts = ("physics_s", "policy_inference_s", "env_other_s", "update_ppo_s", "update_roa_s")
     assert all(result[k] >= 0 for k in parts)
@@ -61,9 +88,21 @@ def test_train_iteration_bench_prints_the_time_breakdown(tmp_path):
 )
 def test_train_cfg_job_prints_the_tasks_typed_env(tmp_path, task, env_key, override):
     out = subprocess.run(
-        [sys.executable, str(ROOT / "train.py"), "--cfg", "job", f"task={task}", "env.sim.num_threads=1", override],
-        capture_output=True, text=True, check=True, cwd=tmp_path, timeout=300,
-    )  # fmt: skip
+        [
+            sys.executable,
+            str(ROOT / "train.py"),
+            "--cfg",
+            "job",
+            f"task={task}",
+            "env.sim.num_threads=1",
+            override,
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=tmp_path,
+        timeout=300,
+    )
     cfg = OmegaConf.create(out.stdout)  # the composed config, as YAML, and nothing else
     assert cfg.task == task and env_key in cfg.env and cfg.env.sim.num_threads == 1
     key, value = override.split("=")
@@ -72,8 +111,18 @@ def test_train_cfg_job_prints_the_tasks_typed_env(tmp_path, task, env_key, overr
 
 @pytest.mark.parametrize("override", ["env.trajectory.fiel=x", "+env.trajectory.fiel=x"])
 def test_train_cli_refuses_a_typo_naming_the_key(tmp_path, override):
-    out = subprocess.run([sys.executable, str(ROOT / "train.py"), override, "runner.max_iterations=0",
-                          f"runner.log_dir={tmp_path / 'run'}"], capture_output=True, text=True, cwd=tmp_path,
-                         timeout=300)  # fmt: skip
+    out = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "train.py"),
+            override,
+            "runner.max_iterations=0",
+            f"runner.log_dir={tmp_path / 'run'}",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=300,
+    )
     assert out.returncode != 0 and "env.trajectory.fiel" in out.stderr, out.stderr[-2000:]
     assert not (tmp_path / "run").exists()  # refused before anything was written

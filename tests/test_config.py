@@ -155,8 +155,11 @@ def test_an_unknown_reward_term_is_refused_listing_the_tasks_terms(task, one_val
 @pytest.mark.parametrize("preset", sorted(p.stem for p in (ROOT / "cfg" / "preset").glob("*.yaml")))
 def test_every_preset_validates_for_every_task(preset, task):
     cfg = to_train_cfg(compose_cfg([f"preset={preset}", f"task={task}"]))
-    assert cfg.task == task and type(cfg.env).__name__ == {"moving_platform": "MovingPlatformCfg",
-                                                           "rough_static": "RoughStaticCfg"}[task]  # fmt: skip
+    assert (
+        cfg.task == task
+        and type(cfg.env).__name__
+        == {"moving_platform": "MovingPlatformCfg", "rough_static": "RoughStaticCfg"}[task]
+    )
 
 
 def test_the_paper_preset_validates_and_only_the_runner_needs_a_gpu():
@@ -193,12 +196,31 @@ def test_a_saved_config_reads_back_to_the_same_train_cfg(task):
         "runner",
     ]
     common = ["num_envs", "seed", "backend", "sim", "control", "observations"]
-    assert list(saved["env"]) == common + {
-        "moving_platform": ["init_state", "domain_rand", "platform", "trajectory", "curriculum", "rewards",
-                            "termination"],
-        "rough_static": ["episode_length_s", "terrain", "commands", "pushes", "init_state", "domain_rand",
-                         "rewards", "termination"],
-    }[task]  # fmt: skip
+    assert (
+        list(saved["env"])
+        == common
+        + {
+            "moving_platform": [
+                "init_state",
+                "domain_rand",
+                "platform",
+                "trajectory",
+                "curriculum",
+                "rewards",
+                "termination",
+            ],
+            "rough_static": [
+                "episode_length_s",
+                "terrain",
+                "commands",
+                "pushes",
+                "init_state",
+                "domain_rand",
+                "rewards",
+                "termination",
+            ],
+        }[task]
+    )
 
 
 def test_the_env_schemas_import_without_the_envs():
@@ -211,8 +233,9 @@ def test_the_env_schemas_import_without_the_envs():
         "import lasmp.envs.moving_platform.cfg, lasmp.envs.rough_static.cfg\n"
         "print(json.dumps([before, sorted(m for m in sys.modules if m.startswith('lasmp.'))]))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT,
-                         timeout=120)  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT, timeout=120
+    )
     before, after = json.loads(out.stdout)
     assert before == []
     assert "lasmp.envs.moving_platform.cfg" in after and "lasmp.envs.rough_static.cfg" in after

@@ -1,4 +1,4 @@
-"""Waypoint curriculum (SPEC §5)."""
+"""Waypoint curriculum (docs/environment.md, Curriculum)."""
 
 from __future__ import annotations
 

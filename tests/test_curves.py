@@ -47,7 +47,20 @@ def test_a_directory_without_event_files_is_an_error(tmp_path, capsys):
 def test_several_runs_are_compared_at_one_budget(tmp_path, capsys):
     a, b = write_run(tmp_path / "a"), write_run(tmp_path / "b", iterations=30, reward_scale=3.0)
     out = tmp_path / "compare.png"
-    argv = [str(a), str(b), "--labels", "A", "B", "--last-iteration", "14", "--every", "10", "--out", str(out), "--json"]
+    argv = [
+        str(a),
+        str(b),
+        "--labels",
+        "A",
+        "B",
+        "--last-iteration",
+        "14",
+        "--every",
+        "10",
+        "--out",
+        str(out),
+        "--json",
+    ]
     assert curves.main(argv) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     runs = json.loads(capsys.readouterr().out)["runs"]

@@ -27,7 +27,14 @@ TINY = {
 
 
 def torchrun(*args, timeout=300, **kwargs) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2", *map(str, args)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "torch.distributed.run",
+        "--standalone",
+        "--nproc_per_node=2",
+        *map(str, args),
+    ]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT, **kwargs)
 
 
@@ -93,22 +100,49 @@ def test_a_two_process_run_resumes_in_its_directory_with_identical_parameters(tw
     assert (tmp / "run" / "model_4.pt").exists()
 
 
-def test_one_process_refuses_a_two_process_checkpoint_unless_told_to_restart_the_episodes(two_ranks, tmp_path):
+def test_one_process_refuses_a_two_process_checkpoint_unless_told_to_restart_the_episodes(
+    two_ranks, tmp_path
+):
     tmp, _, _, _ = two_ranks
-    args = [f"resume={tmp / 'run' / 'model_2.pt'}", f"runner.log_dir={tmp_path / 'branch'}", "runner.max_iterations=1",
-            "algo.precision=float32", "torch_threads=1"]  # fmt: skip
-    out = subprocess.run([sys.executable, "train.py", *args], capture_output=True, text=True, cwd=ROOT, timeout=300)
-    assert out.returncode == 2 and "2 process(es), this job has 1" in out.stderr and "Traceback" not in out.stderr
-    again = subprocess.run([sys.executable, "train.py", *args, "resume_drop_env_state=true"], capture_output=True,
-                           text=True, cwd=ROOT, timeout=300)  # fmt: skip
+    args = [
+        f"resume={tmp / 'run' / 'model_2.pt'}",
+        f"runner.log_dir={tmp_path / 'branch'}",
+        "runner.max_iterations=1",
+        "algo.precision=float32",
+        "torch_threads=1",
+    ]
+    out = subprocess.run(
+        [sys.executable, "train.py", *args], capture_output=True, text=True, cwd=ROOT, timeout=300
+    )
+    assert (
+        out.returncode == 2
+        and "2 process(es), this job has 1" in out.stderr
+        and "Traceback" not in out.stderr
+    )
+    again = subprocess.run(
+        [sys.executable, "train.py", *args, "resume_drop_env_state=true"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
     assert again.returncode == 0, again.stderr[-2000:]
 
 
 def test_sigterm_to_the_job_stops_both_ranks_after_the_same_iteration_with_one_checkpoint(tmp_path):
     run = tmp_path / "run"
-    args = ["train.py", "env.num_envs=4", "runner.max_iterations=500", "runner.save_interval=1000",
-            "runner.num_steps_per_env=5", "policy.actor_hidden_dims=[32,32,32]", "policy.critic_hidden_dims=[32,32]",
-            "algo.precision=float32", "torch_threads=1", f"runner.log_dir={run}"]  # fmt: skip
+    args = [
+        "train.py",
+        "env.num_envs=4",
+        "runner.max_iterations=500",
+        "runner.save_interval=1000",
+        "runner.num_steps_per_env=5",
+        "policy.actor_hidden_dims=[32,32,32]",
+        "policy.critic_hidden_dims=[32,32]",
+        "algo.precision=float32",
+        "torch_threads=1",
+        f"runner.log_dir={run}",
+    ]
     cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2", *args]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT)
     try:

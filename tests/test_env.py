@@ -13,9 +13,8 @@ import torch
 from lasmp.config import ConfigError, build_env_cfg
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
-from lasmp.envs.moving_platform.domain_rand import nominal_intrinsics
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
-from lasmp.envs.robot import as_numpy
+from lasmp.envs.robot import as_numpy, nominal_intrinsics
 from lasmp.robots import a1
 
 G = 9.81
@@ -31,7 +30,7 @@ def static_platform(env: MovingPlatformEnv) -> None:
 
 
 def make(n=4, **cfg) -> MovingPlatformEnv:
-    env = MovingPlatformEnv({"num_envs": n, **cfg})
+    env = MovingPlatformEnv(build_env_cfg({"num_envs": n, **cfg}, schema=MovingPlatformCfg))
     env.reset()
     return env
 
@@ -358,7 +357,9 @@ def test_unknown_reward_error_lists_the_valid_terms():
 def test_missing_trajectory_file_fails_with_its_name(tmp_path):
     missing = tmp_path / "nope.npz"
     with pytest.raises(trj.TrajectoryFileError, match="nope.npz"):
-        MovingPlatformEnv({"num_envs": 1, "trajectory": {"file": str(missing)}})
+        MovingPlatformEnv(
+            build_env_cfg({"num_envs": 1, "trajectory": {"file": str(missing)}}, schema=MovingPlatformCfg)
+        )
 
 
 def test_trajectory_file_rows_are_replayed_in_order(tmp_path):
@@ -376,7 +377,9 @@ def test_trajectory_file_rows_are_replayed_in_order(tmp_path):
 def test_observations_handed_out_stay_unchanged_through_the_next_step():
     """rsl_rl copies a step's observations into its storage only after the following env.step: the
     tensors handed out (history included, whose buffers the env reuses) must not change meanwhile."""
-    env = MovingPlatformEnv({"num_envs": 4, "seed": 0, "sim": {"num_threads": 1}})
+    env = MovingPlatformEnv(
+        build_env_cfg({"num_envs": 4, "seed": 0, "sim": {"num_threads": 1}}, schema=MovingPlatformCfg)
+    )
     obs, _ = env.reset()
     for _ in range(4):
         handed_out, snapshot = obs, obs.clone()
@@ -407,4 +410,6 @@ def test_a_non_finite_observation_value_becomes_0_is_counted_once_and_the_rest_i
     assert env.nonfinite_obs_values == 1 and extras["log"]["/faults/nonfinite_obs_values"] == 1.0
     assert all(torch.isfinite(v).all() and v.abs().max() <= 5.0 for v in obs.values())
     assert obs["priv_implicit"][1, 0] == 0.0 and obs["critic"][1, 57] == 0.0
-    assert obs["priv_implicit"][2, 1] == -5.0 and obs["priv_implicit"][0, 0] == pytest.approx(min(env.x_imp[0, 0], 5.0))
+    assert obs["priv_implicit"][2, 1] == -5.0 and obs["priv_implicit"][0, 0] == pytest.approx(
+        min(env.x_imp[0, 0], 5.0)
+    )

@@ -109,7 +109,9 @@ def table(k=6):
     t["foot_friction"] = np.linspace(0.7, 1.29, k)
     t["collided"] = np.array([0, 0, 1, 0, 1, 1][:k], float)
     t["collision_time_s"] = np.where(t["collided"] > 0, [0, 0, 3.0, 0, 8.5, 9.9][:k], np.nan)
-    t["collision_cause"] = np.array(["", "", "FR_calf", "", "trunk+RL_hip", "off_footprint"][:k], dtype=object)
+    t["collision_cause"] = np.array(
+        ["", "", "FR_calf", "", "trunk+RL_hip", "off_footprint"][:k], dtype=object
+    )
     t["height_violation_rate"] = np.array([0.1, np.nan, 0.2, 0.0, 0.5, 1.0][:k])
     t["platform_tilt_max_rad"] = np.array([0.05, 0.2, 0.45, 0.55, 0.6, 0.9][:k])
     t["forced"] = np.array([0, 0, 0, 0, 0, 1][:k], float)
@@ -127,7 +129,9 @@ def test_episodes_csv_round_trips_with_empty_cells_for_missing_values(tmp_path):
             assert list(back[c]) == list(t[c])
         else:
             np.testing.assert_array_equal(back[c], t[c].astype(float), err_msg=c)
-    assert (tmp_path / "episodes.csv").read_text().splitlines()[2].split(",")[ep.COLUMNS.index("height_violation_rate")] == ""
+    assert (tmp_path / "episodes.csv").read_text().splitlines()[2].split(",")[
+        ep.COLUMNS.index("height_violation_rate")
+    ] == ""
 
 
 def test_reading_a_missing_or_corrupt_episodes_csv_names_the_file_and_the_problem(tmp_path):
@@ -158,7 +162,12 @@ def test_breakdown_counts_collisions_by_n_tilt_cause_forced_and_late_failures():
     assert b["episodes"] == 6 and b["collisions"] == 3
     assert b["by_n"] == [("4", 2, 0), ("10", 2, 1), ("16", 2, 2)]
     by_tilt = {label: (n, c) for label, n, c in b["by_tilt"]}
-    assert by_tilt["[0.4, 0.5)"] == (1, 1) and by_tilt["[0.5, 0.6)"] == (1, 0) and by_tilt["[0.6, 0.7)"] == (1, 1) and by_tilt[">= 0.7"] == (1, 1)
+    assert (
+        by_tilt["[0.4, 0.5)"] == (1, 1)
+        and by_tilt["[0.5, 0.6)"] == (1, 0)
+        and by_tilt["[0.6, 0.7)"] == (1, 1)
+        and by_tilt[">= 0.7"] == (1, 1)
+    )
     assert b["by_forced"] == [("forced", 1, 1), ("not forced", 5, 2)]
     assert b["tilt_tail"] == {"episodes": 3, "collisions": 2}
     assert dict(b["by_cause"]) == {"calf": 1, "trunk": 1, "off_footprint": 1}

@@ -86,7 +86,9 @@ def test_collision_at_step_k_counts_violations_and_deviations_up_to_k_only():
     assert out["collision"][0] == 1.0
     assert out["height_violation_rate"][0] == pytest.approx(1 / 3)
     assert out["position_deviation_m"][0] == pytest.approx(math.sqrt(0.3**2 + 0.4**2 + 0.2**2) / 3)
-    assert out["position_deviation_translating_m"][0] == pytest.approx(math.sqrt(0.3**2 + 0.4**2 + 0.2**2) / 3)
+    assert out["position_deviation_translating_m"][0] == pytest.approx(
+        math.sqrt(0.3**2 + 0.4**2 + 0.2**2) / 3
+    )
     assert out["rotation_deviation_platform_rad"][0] == pytest.approx(0.5 / 3)
     assert out["rotation_deviation_rad"][0] == pytest.approx(0.0)  # a turn about the vertical: no tilt
     assert out["power_w"][0] == pytest.approx(12 * 2.0 / 3)
@@ -112,19 +114,35 @@ def test_collision_on_the_first_step_counts_for_the_collision_rate_only():
     play(m, 0, [([0, 0, 0.0], np.eye(3), np.zeros(12), np.zeros(12), True)])
     out = m.close(np.array([0]), np.array([True]))
     assert out["steps"][0] == 0 and np.isnan(out["position_deviation_m"][0])
-    summary = summarize({k: np.array([v[0], 0.0]) if k != "collision" else np.array([1.0, 0.0])
-                         for k, v in out.items()}, num_batches=2)  # fmt: skip
+    summary = summarize(
+        {k: np.array([v[0], 0.0]) if k != "collision" else np.array([1.0, 0.0]) for k, v in out.items()},
+        num_batches=2,
+    )
     assert summary["collision_rate"]["mean"] == 0.5
 
 
 def test_summary_std_is_over_batches():
-    episodes = {k: np.array([0.0, 0.0, 1.0, 1.0]) for k in
-                ("collision", "height_violation_rate", "position_deviation_m", "rotation_deviation_rad", "power_w",
-                 "position_deviation_translating_m", "rotation_deviation_platform_rad")}  # fmt: skip
+    episodes = {
+        k: np.array([0.0, 0.0, 1.0, 1.0])
+        for k in (
+            "collision",
+            "height_violation_rate",
+            "position_deviation_m",
+            "rotation_deviation_rad",
+            "power_w",
+            "position_deviation_translating_m",
+            "rotation_deviation_platform_rad",
+        )
+    }
     s = summarize(episodes, num_batches=2)
     assert s["collision_rate"] == {"mean": 0.5, "std": 0.5}
-    assert set(s) == {"collision_rate", "height_violation_rate", "position_deviation_m", "rotation_deviation_rad",
-                      "power_w"}  # the paper's five by default  # fmt: skip
+    assert set(s) == {
+        "collision_rate",
+        "height_violation_rate",
+        "position_deviation_m",
+        "rotation_deviation_rad",
+        "power_w",
+    }  # the paper's five by default
     assert set(summarize(episodes, 2, ALL_METRICS)) == set(ALL_METRICS)
 
 
@@ -149,20 +167,39 @@ def test_benchmark_source_pairs_episodes_in_order_and_marks_the_rest_inactive():
 
 
 def run_evaluate(*args, cwd):
-    return subprocess.run([sys.executable, str(ROOT / "evaluate.py"), *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=600)  # fmt: skip
+    return subprocess.run(
+        [sys.executable, str(ROOT / "evaluate.py"), *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=600,
+    )
 
 
 def test_evaluate_stand_still_end_to_end(tmp_path):
     bench_path = tmp_path / "bench.npz"
     bm.save(bench_path, bm.generate(num_trajectories=32, num_robots=8, seed=0))
-    out = run_evaluate("--controller", "stand_still", "--num-trajectories", "16", "--benchmark", str(bench_path),
-                       "--out", str(tmp_path / "ev"), cwd=tmp_path)  # fmt: skip
+    out = run_evaluate(
+        "--controller",
+        "stand_still",
+        "--num-trajectories",
+        "16",
+        "--benchmark",
+        str(bench_path),
+        "--out",
+        str(tmp_path / "ev"),
+        cwd=tmp_path,
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     result = json.loads((tmp_path / "ev" / "metrics.json").read_text())
     assert result["num_episodes"] == 16
-    for key in ("collision_rate", "height_violation_rate", "position_deviation_m", "rotation_deviation_rad",
-                "power_w"):  # fmt: skip
+    for key in (
+        "collision_rate",
+        "height_violation_rate",
+        "position_deviation_m",
+        "rotation_deviation_rad",
+        "power_w",
+    ):
         assert set(result["metrics"][key]) == {"mean", "std"}
     assert 0.0 <= result["metrics"]["collision_rate"]["mean"] <= 1.0
     assert result["metrics"]["power_w"]["mean"] > 0.0  # the PD does work against the platform's motion
@@ -172,7 +209,9 @@ def test_evaluate_stand_still_end_to_end(tmp_path):
     np.testing.assert_array_equal(rows["episode"], np.arange(16))
     assert set(np.unique(rows["collided"])) <= {0.0, 1.0}
     collided = rows["collided"] > 0
-    assert np.all(np.isfinite(rows["collision_time_s"][collided])) and np.all(rows["collision_time_s"][collided] <= 10)
+    assert np.all(np.isfinite(rows["collision_time_s"][collided])) and np.all(
+        rows["collision_time_s"][collided] <= 10
+    )
     assert all(c for c in rows["collision_cause"][collided]) and not any(rows["collision_cause"][~collided])
     assert np.all(np.isfinite(rows["platform_tilt_max_rad"])) and set(np.unique(rows["forced"])) <= {0.0, 1.0}
     assert result["forced_episodes"] == int(rows["forced"].sum())
@@ -201,8 +240,16 @@ def test_evaluate_refuses_an_earlier_result_before_playing_unless_forced(tmp_pat
     assert out.returncode == 2 and f"{out_dir / 'metrics.json'} already exists" in out.stderr
     assert "--force" in out.stderr and "episodes" not in out.stderr  # refused before any episode
     assert json.loads((out_dir / "metrics.json").read_text()) == {"earlier": True}
-    out = run_evaluate(*STAND_STILL_2, "--benchmark", str(bench), "--out", str(out_dir), "--force",
-                       "--no-platform-probe", cwd=tmp_path)  # fmt: skip
+    out = run_evaluate(
+        *STAND_STILL_2,
+        "--benchmark",
+        str(bench),
+        "--out",
+        str(out_dir),
+        "--force",
+        "--no-platform-probe",
+        cwd=tmp_path,
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     result = strict_load(out_dir / "metrics.json")  # strict JSON: null, never NaN
     assert result["num_episodes"] == 2 and result["forced_episodes"] is None
@@ -212,8 +259,9 @@ def test_evaluate_refuses_an_earlier_result_before_playing_unless_forced(tmp_pat
 def test_evaluate_fails_at_once_on_an_unwritable_output_directory(tmp_path):
     bench = tiny_benchmark(tmp_path)
     (tmp_path / "a_file").write_text("")
-    out = run_evaluate(*STAND_STILL_2, "--benchmark", str(bench), "--out", str(tmp_path / "a_file" / "ev"),
-                       cwd=tmp_path)  # fmt: skip
+    out = run_evaluate(
+        *STAND_STILL_2, "--benchmark", str(bench), "--out", str(tmp_path / "a_file" / "ev"), cwd=tmp_path
+    )
     assert out.returncode == 2 and "cannot write results to" in out.stderr and "a_file" in out.stderr
     assert "Traceback" not in out.stderr and "episodes" not in out.stderr
 
@@ -230,7 +278,9 @@ def test_the_default_output_directory_differs_for_the_same_checkpoint_name_of_tw
     b = out_dir(str(tmp_path / "runs" / "seed1" / "model_449.pt"))
     assert a == Path("eval/seed0/model_449") and b == Path("eval/seed1/model_449")
     assert out_dir(None, "stand_still") == Path("eval/stand_still")
-    assert out_dir(str(tmp_path / "rs_run" / "model_9.pt"), "rs_oracle") == Path("eval/rs_run/model_9_rs_oracle")
+    assert out_dir(str(tmp_path / "rs_run" / "model_9.pt"), "rs_oracle") == Path(
+        "eval/rs_run/model_9_rs_oracle"
+    )
     run = tmp_path / "runs" / "seed2"
     run.mkdir(parents=True)
     for k in (9, 10):
@@ -241,10 +291,17 @@ def test_the_default_output_directory_differs_for_the_same_checkpoint_name_of_tw
 def test_metrics_json_writes_missing_values_as_null(tmp_path):
     from lasmp.eval.report import write_results
 
-    result = {"method": "m", "num_episodes": 1, "std_over": "1 batch", "wall_time_s": 1.0,
-              "metrics": {"collision_rate": {"mean": 1.0, "std": 0.0},
-                          "power_w": {"mean": float("nan"), "std": np.float64("nan")}},
-              "extra": [np.inf, np.int64(3)]}  # fmt: skip
+    result = {
+        "method": "m",
+        "num_episodes": 1,
+        "std_over": "1 batch",
+        "wall_time_s": 1.0,
+        "metrics": {
+            "collision_rate": {"mean": 1.0, "std": 0.0},
+            "power_w": {"mean": float("nan"), "std": np.float64("nan")},
+        },
+        "extra": [np.inf, np.int64(3)],
+    }
     write_results(tmp_path, result)
     back = strict_load(tmp_path / "metrics.json")
     assert back["metrics"]["power_w"] == {"mean": None, "std": None} and back["extra"] == [None, 3]
@@ -255,10 +312,23 @@ def test_evaluate_refuses_a_malformed_trajectory_file(tmp_path):
     bench_path = tmp_path / "bench.npz"
     bm.save(bench_path, bm.generate(num_trajectories=4, num_robots=2, seed=0))
     bad = tmp_path / "bad.npz"
-    np.savez(bad, format="lasmp-trajectories", version=1, kind="samples", t_s=np.array([0.0, 1.0, 0.5]),
-             poses=np.zeros((1, 3, 6)))  # fmt: skip
-    out = run_evaluate("--controller", "stand_still", "--benchmark", str(bench_path), "--trajectories", str(bad),
-                       cwd=tmp_path)  # fmt: skip
+    np.savez(
+        bad,
+        format="lasmp-trajectories",
+        version=1,
+        kind="samples",
+        t_s=np.array([0.0, 1.0, 0.5]),
+        poses=np.zeros((1, 3, 6)),
+    )
+    out = run_evaluate(
+        "--controller",
+        "stand_still",
+        "--benchmark",
+        str(bench_path),
+        "--trajectories",
+        str(bad),
+        cwd=tmp_path,
+    )
     assert out.returncode == 2 and "bad.npz" in out.stderr and "Traceback" not in out.stderr
     with pytest.raises(trj.TrajectoryFileError):
         trj.load(bad)
@@ -267,11 +337,15 @@ def test_evaluate_refuses_a_malformed_trajectory_file(tmp_path):
 
 
 def test_oracle_command_points_to_the_platform_centre_in_the_heading_frame():
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.envs.moving_platform.readout import read
     from lasmp.eval.cli import oracle_command
 
-    env = MovingPlatformEnv({"num_envs": 2, "domain_rand": {"enabled": False}})
+    env = MovingPlatformEnv(
+        build_env_cfg({"num_envs": 2, "domain_rand": {"enabled": False}}, schema=MovingPlatformCfg)
+    )
     env.reset()
     ix = env.index
     yaw = math.pi / 2  # facing world +y
@@ -290,19 +364,40 @@ def test_evaluate_rs_controllers_end_to_end(tmp_path):
     from lasmp.train import train
     from lasmp.train_cfg import to_train_cfg
 
-    cfg = to_train_cfg(OmegaConf.create({
-        "task": "rough_static", "env": {"num_envs": 4}, "torch_threads": 1,
-        "policy": {"name": "rs", "use_alignment": False, "explicit": "no_platform", "command_input": True,
-                   "actor_hidden_dims": [32, 32, 32]},
-        "runner": {"max_iterations": 1, "log_dir": str(tmp_path / "rs")},
-    }))  # fmt: skip
+    cfg = to_train_cfg(
+        OmegaConf.create(
+            {
+                "task": "rough_static",
+                "env": {"num_envs": 4},
+                "torch_threads": 1,
+                "policy": {
+                    "name": "rs",
+                    "use_alignment": False,
+                    "explicit": "no_platform",
+                    "command_input": True,
+                    "actor_hidden_dims": [32, 32, 32],
+                },
+                "runner": {"max_iterations": 1, "log_dir": str(tmp_path / "rs")},
+            }
+        )
+    )
     train(cfg)
     bench_path = tmp_path / "bench.npz"
     bm.save(bench_path, bm.generate(num_trajectories=8, num_robots=4, seed=0))
     for controller in ("rs", "rs_oracle"):
-        out = run_evaluate("--controller", controller, "--checkpoint", str(tmp_path / "rs"), "--benchmark",
-                           str(bench_path), "--num-trajectories", "4", "--out", str(tmp_path / controller),
-                           cwd=tmp_path)  # fmt: skip
+        out = run_evaluate(
+            "--controller",
+            controller,
+            "--checkpoint",
+            str(tmp_path / "rs"),
+            "--benchmark",
+            str(bench_path),
+            "--num-trajectories",
+            "4",
+            "--out",
+            str(tmp_path / controller),
+            cwd=tmp_path,
+        )
         assert out.returncode == 0, out.stderr[-2000:]
         assert json.loads((tmp_path / controller / "metrics.json").read_text())["num_episodes"] == 4
     # a LAS-MP evaluation refuses the R-S checkpoint with a clear message
@@ -314,15 +409,33 @@ def test_evaluate_lasmp_checkpoint_reports_estimator_accuracy_and_plots(tmp_path
     from lasmp.train import train
     from lasmp.train_cfg import to_train_cfg
 
-    cfg = to_train_cfg(OmegaConf.create({
-        "env": {"num_envs": 4}, "torch_threads": 1, "policy": {"actor_hidden_dims": [32, 32, 32]},
-        "runner": {"max_iterations": 1, "log_dir": str(tmp_path / "mp")},
-    }))  # fmt: skip
+    cfg = to_train_cfg(
+        OmegaConf.create(
+            {
+                "env": {"num_envs": 4},
+                "torch_threads": 1,
+                "policy": {"actor_hidden_dims": [32, 32, 32]},
+                "runner": {"max_iterations": 1, "log_dir": str(tmp_path / "mp")},
+            }
+        )
+    )
     train(cfg)
     bench_path = tmp_path / "bench.npz"
     bm.save(bench_path, bm.generate(num_trajectories=8, num_robots=4, seed=0))
-    out = run_evaluate("--checkpoint", str(tmp_path / "mp"), "--benchmark", str(bench_path), "--num-trajectories",
-                       "6", "--batch-envs", "3", "--plot-estimates", "--out", str(tmp_path / "ev"), cwd=tmp_path)  # fmt: skip
+    out = run_evaluate(
+        "--checkpoint",
+        str(tmp_path / "mp"),
+        "--benchmark",
+        str(bench_path),
+        "--num-trajectories",
+        "6",
+        "--batch-envs",
+        "3",
+        "--plot-estimates",
+        "--out",
+        str(tmp_path / "ev"),
+        cwd=tmp_path,
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     result = json.loads((tmp_path / "ev" / "metrics.json").read_text())
     est = result["estimator"]
@@ -350,8 +463,13 @@ def test_trunk_pose_reads_the_platform_and_translating_frames_of_a_readout():
     from types import SimpleNamespace
 
     rot = rot_z(0.7)[None]
-    r = SimpleNamespace(p_body_p=np.array([[0.2, 0.0, 0.47]]), p_body_w=np.array([[1.0, 2.0, 3.5]]),
-                        p_plf_w=np.array([[1.0, 1.8, 3.0]]), r_wp=rot, r_wb=rot)  # fmt: skip
+    r = SimpleNamespace(
+        p_body_p=np.array([[0.2, 0.0, 0.47]]),
+        p_body_w=np.array([[1.0, 2.0, 3.5]]),
+        p_plf_w=np.array([[1.0, 1.8, 3.0]]),
+        r_wp=rot,
+        r_wb=rot,
+    )
     p = TrunkPose.from_readout(r)
     np.testing.assert_allclose(p.p_body_p, r.p_body_p)
     np.testing.assert_allclose(p.r_pb[0], np.eye(3), atol=1e-12)  # trunk aligned with the platform
@@ -363,8 +481,13 @@ def tilts(r_wb, r_wp, r_wb0=None):
     level, or at r_wb0)."""
     m = EpisodeMetrics(1, H)
     m.start(np.array([0]), pose([[0, 0, H]], r_wb=np.eye(3) if r_wb0 is None else r_wb0))
-    m.step(np.array([True]), np.array([False]), pose([[0, 0, H]], r_wb=r_wb, r_wp=r_wp), np.zeros((1, 12)),
-           np.zeros((1, 12)))  # fmt: skip
+    m.step(
+        np.array([True]),
+        np.array([False]),
+        pose([[0, 0, H]], r_wb=r_wb, r_wp=r_wp),
+        np.zeros((1, 12)),
+        np.zeros((1, 12)),
+    )
     out = m.close(np.array([0]), np.array([False]))
     return out["rotation_deviation_rad"][0], out["rotation_deviation_platform_rad"][0]
 
@@ -387,19 +510,27 @@ def test_a_trunk_that_tilts_on_a_level_platform_tilts_in_both_readings():
 def test_yaw_alone_gives_no_world_tilt_even_from_a_tilted_start():
     assert tilts(r_wb=rot_z(1.2), r_wp=np.eye(3))[0] == pytest.approx(0.0, abs=1e-12)
     tilted = rot_x(0.2)
-    world, _ = tilts(r_wb=rot_z(2.5) @ tilted, r_wp=np.eye(3), r_wb0=tilted)  # turned about the world vertical
+    world, _ = tilts(
+        r_wb=rot_z(2.5) @ tilted, r_wp=np.eye(3), r_wb0=tilted
+    )  # turned about the world vertical
     assert world == pytest.approx(0.0, abs=1e-9)
 
 
 @pytest.mark.parametrize("h_des_from", ["top", "centre"])
 def test_the_height_band_is_centred_037_m_above_the_top_whatever_the_reward_reads(h_des_from, monkeypatch):
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.eval.cli import eval_env_overrides
     from lasmp.eval.metrics import metric_h_des_p_m
     from lasmp.eval.run import run_benchmark
 
-    env = MovingPlatformEnv({**eval_env_overrides(2, 0), "rewards": {"h_des_from": h_des_from},
-                             "trajectory": {"split": "test", "duration_s": 0.1}})  # fmt: skip
+    overrides = {
+        **eval_env_overrides(2, 0),
+        "rewards": {"h_des_from": h_des_from},
+        "trajectory": {"split": "test", "duration_s": 0.1},
+    }
+    env = MovingPlatformEnv(build_env_cfg(overrides, schema=MovingPlatformCfg))
     assert metric_h_des_p_m(env.plf_top_m) == pytest.approx(env.plf_top_m + 0.37) == pytest.approx(0.47)
     bench = bm.generate(num_trajectories=2, num_robots=2, seed=0)
     seen = {}
@@ -418,6 +549,8 @@ def test_the_height_band_is_centred_037_m_above_the_top_whatever_the_reward_read
 def test_shrinking_the_tail_steps_only_playing_envs_and_changes_no_episode():
     import torch
 
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.eval.cli import eval_env_overrides
     from lasmp.eval.run import run_benchmark
@@ -425,9 +558,12 @@ def test_shrinking_the_tail_steps_only_playing_envs_and_changes_no_episode():
     bench = bm.generate(num_trajectories=10, num_robots=4, seed=0)
     results, stepped = {}, {}
     for shrink in (False, True):
-        env = MovingPlatformEnv({**eval_env_overrides(4, 0), "trajectory": {"split": "test", "duration_s": 2.0}})
+        overrides = {**eval_env_overrides(4, 0), "trajectory": {"split": "test", "duration_s": 2.0}}
+        env = MovingPlatformEnv(build_env_cfg(overrides, schema=MovingPlatformCfg))
         zeros = torch.zeros(4, 12)
-        results[shrink] = run_benchmark(env, lambda obs, zeros=zeros: zeros, bench, 10, progress=False, shrink_tail=shrink)
+        results[shrink] = run_benchmark(
+            env, lambda obs, zeros=zeros: zeros, bench, 10, progress=False, shrink_tail=shrink
+        )
         stepped[shrink] = env.sim.env_steps
         assert env.stepped_envs is None  # the hook is cleared after the run
     for key, value in results[False]["episodes"].items():

@@ -107,8 +107,13 @@ def test_metadata_comes_from_the_checkpoint_and_the_a1_constants(run_dir, meta):
 def test_obs_layout_slots_are_contiguous_and_sum_to_the_observation_size(meta):
     layout = meta["obs_layout"]
     assert [s["name"] for s in layout] == [
-        "accelerometer", "gyro", "roll_pitch", "joint_pos", "joint_vel", "last_action"
-    ]  # fmt: skip
+        "accelerometer",
+        "gyro",
+        "roll_pitch",
+        "joint_pos",
+        "joint_vel",
+        "last_action",
+    ]
     assert [s["size"] for s in layout] == [3, 3, 2, 12, 12, 12]
     assert sum(s["size"] for s in layout) == OBS_DIM
     assert [s["start"] for s in layout] == [0, 3, 6, 8, 20, 32]

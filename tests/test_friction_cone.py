@@ -1,4 +1,4 @@
-"""Friction is isotropic (SPEC §2): with the default contact settings a block and the standing A1
+"""Friction is isotropic (docs/world.md, The robot): with the default contact settings a block and the standing A1
 hold on a tilted platform below atan(mu) and slide above it whichever way the slope faces, and
 MuJoCo's pyramidal cone, which does not, fails the same check.
 

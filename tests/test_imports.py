@@ -37,7 +37,9 @@ def import_graph(package: Path = PACKAGE) -> dict[str, set[str]]:
             if target.split(".")[0] != root:
                 continue
             parts = target.split(".")
-            edges.update(".".join(parts[:i]) for i in range(2, len(parts) + 1) if ".".join(parts[:i]) in files)
+            edges.update(
+                ".".join(parts[:i]) for i in range(2, len(parts) + 1) if ".".join(parts[:i]) in files
+            )
         edges.discard(name)
         # a module's own package __init__ runs before it: that is not an import the module makes
         graph[name] = {e for e in edges if not name.startswith(e + ".")}

@@ -79,8 +79,12 @@ def test_unknown_logger_is_refused_at_start_up_naming_the_field(tmp_path, monkey
 def test_missing_package_or_credentials_are_refused_naming_the_fix(tmp_path, monkeypatch):
     monkeypatch.setattr(lasmp.train_cfg, "_installed", lambda package: False)
     for name in ("wandb", "neptune"):
-        with pytest.raises(ConfigError, match=re.escape(f'runner.logger={name} needs the {name} package') + ".*"
-                           + re.escape(f'pip install -e ".[{name}]"')):  # fmt: skip
+        with pytest.raises(
+            ConfigError,
+            match=re.escape(f"runner.logger={name} needs the {name} package")
+            + ".*"
+            + re.escape(f'pip install -e ".[{name}]"'),
+        ):
             to_train_cfg(tiny(tmp_path, logger=name))
     monkeypatch.setattr(lasmp.train_cfg, "_installed", lambda package: True)
     monkeypatch.delenv("NEPTUNE_API_TOKEN", raising=False)

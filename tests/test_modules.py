@@ -263,7 +263,9 @@ def test_estimation_errors():
     x_hat, l_hat = actor.estimates(obs)
     by_hand = (x_hat - obs[GROUP_EXPLICIT][:, : actor.num_explicit]).abs().mean(0)
     torch.testing.assert_close(torch.stack([errs[n] for n in X_EXP_NAMES]), by_hand)
-    torch.testing.assert_close(errs["l_imp_l2"], (l_hat - actor.encoder(obs[GROUP_IMPLICIT])).norm(dim=-1).mean())
+    torch.testing.assert_close(
+        errs["l_imp_l2"], (l_hat - actor.encoder(obs[GROUP_IMPLICIT])).norm(dim=-1).mean()
+    )
     _, small = make_actor(explicit="no_platform", use_alignment=False).roa_losses(make_obs(), lam=0.5)
     assert "v_body_z" in small and "v_plf_x" not in small
 

@@ -18,7 +18,9 @@ def _run(args, spin: str | None) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k != "GOMP_SPINCOUNT"}
     if spin is not None:
         env["GOMP_SPINCOUNT"] = spin
-    return subprocess.run([sys.executable, *args], env=env, cwd=ROOT, capture_output=True, text=True, check=True)
+    return subprocess.run(
+        [sys.executable, *args], env=env, cwd=ROOT, capture_output=True, text=True, check=True
+    )
 
 
 @pytest.mark.parametrize(("user", "expected"), [(None, "10000"), ("123", "123")])

@@ -1,4 +1,4 @@
-"""Behaviour of the moving platform (SPEC §3) through the real env (fast: few envs, <= 3 s).
+"""Behaviour of the moving platform (docs/world.md, The platform drive) through the real env (fast: few envs, <= 3 s).
 
 Every test builds a `MovingPlatformEnv`, feeds its own references through
 `env._next_trajectories` (so that a reset after a fall replays the same reference from t = 0),
@@ -22,10 +22,12 @@ import numpy as np
 import pytest
 import torch
 
+from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as trj
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
+from lasmp.envs.moving_platform.scene import PLATFORM_JOINTS, POSE_TO_JOINT, platform_gains
 from lasmp.envs.robot import as_numpy
-from lasmp.envs.scene import PLATFORM_JOINTS, POSE_TO_JOINT, platform_gains
 
 T_CHECK_S = 3.0  # horizon of every test
 T_RAMP_S = 1.0  # smooth velocity ramp of the user-made references
@@ -40,7 +42,11 @@ STIFF_PLATFORM = {"omega_n_rad_s": 2 * np.pi * 4.0, "velocity_feedforward": True
 
 def _make_env(n: int, refs: trj.PiecewisePoly, seed: int = 0, **cfg) -> MovingPlatformEnv:
     cfg.setdefault("platform", STIFF_PLATFORM)
-    env = MovingPlatformEnv({"num_envs": n, "seed": seed, "sim": {"num_threads": 2}, **cfg})
+    env = MovingPlatformEnv(
+        build_env_cfg(
+            {"num_envs": n, "seed": seed, "sim": {"num_threads": 2}, **cfg}, schema=MovingPlatformCfg
+        )
+    )
     assert len(refs) == n
     # every (re)set env gets its own row of `refs`: after a fall the same reference restarts at t = 0
     env._next_trajectories = lambda ids: (refs.subset(ids), np.full(len(ids), -1))
@@ -152,7 +158,7 @@ def test_tracking_error_of_generated_reference(kp_f, kd_f, bound_m, bound_rad):
     assert samples >= 0.9 * n * _steps(env, T_CHECK_S), msg
     assert trans < bound_m, f"translation error above {bound_m * 1e3:.0f} mm: {msg}"
     assert rot < bound_rad, f"rotation error above {bound_rad * 1e3:.0f} mrad: {msg}"
-    # closely but not perfectly (SPEC §3): a zero error would mean the test reads the reference
+    # closely but not perfectly (docs/world.md, The platform drive): a zero error would mean the test reads the reference
     assert trans > 1e-4 and rot > 1e-5, f"suspiciously perfect tracking: {msg}"
 
 
@@ -179,7 +185,9 @@ def test_servo_targets_sit_on_the_reference_at_every_policy_step():
     assert moved > 0.05, "the references barely moved: the check above would be empty"
 
 
-@pytest.mark.parametrize("kp_f, kd_f", [(1.0, 0.025), (0.5, 0.01), (2.0, 0.04)], ids=["nominal", "test-soft", "test-stiff"])
+@pytest.mark.parametrize(
+    "kp_f, kd_f", [(1.0, 0.025), (0.5, 0.01), (2.0, 0.04)], ids=["nominal", "test-soft", "test-stiff"]
+)
 def test_position_drive_is_the_filter_of_its_gains(kp_f, kd_f):
     """The calibrated platform (no velocity feedforward) moves as M x'' = kp (x_ref - x) - kd x' per
     translational axis: a 2nd-order low-pass filter of the reference, far from tracking it."""
@@ -191,8 +199,12 @@ def test_position_drive_is_the_filter_of_its_gains(kp_f, kd_f):
     for j, (amp_m, f_hz) in enumerate([(0.4, 0.25), (0.3, 0.35), (0.8, 0.2)]):
         poses[:, :, j] = amp_m * (1.0 - np.cos(2 * np.pi * f_hz * t * np.array([[1.0], [1.3]])))
     refs = trj.from_samples(t, poses)
-    cfg = {"domain_rand": {"split": "test", "test": {"platform_kp_factor": [kp_f, kp_f],
-                                                     "platform_kd_factor": [kd_f, kd_f]}}}  # fmt: skip
+    cfg = {
+        "domain_rand": {
+            "split": "test",
+            "test": {"platform_kp_factor": [kp_f, kp_f], "platform_kd_factor": [kd_f, kd_f]},
+        }
+    }
     env = _make_env(n, refs, platform={}, **cfg)  # the default (calibrated) platform
     assert not env.cfg.platform.velocity_feedforward
     gains = platform_gains(env.cfg.platform)
@@ -220,7 +232,9 @@ def test_position_drive_is_the_filter_of_its_gains(kp_f, kd_f):
             worst = max(worst, err / scale)
             # a real filter, not tracking: the platform lags its reference by a lot
             assert np.abs(x_sim[:, r, j] - np.interp(t_pol, t_fine, ref)).max() > 0.05 * scale
-    assert worst < 0.03, f"platform differs from the 2nd-order model by {worst:.1%} of the reference's amplitude"
+    assert worst < 0.03, (
+        f"platform differs from the 2nd-order model by {worst:.1%} of the reference's amplitude"
+    )
 
 
 # --------------------------------------------------------------------------------------------

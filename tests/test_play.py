@@ -75,7 +75,10 @@ def test_export_onnx_matches_torch(run_dir, loaded, tmp_path, capsys):
     )
     path = tmp_path / "policy.onnx"
     assert str(path) in capsys.readouterr().out
-    assert sorted(os.listdir(tmp_path)) == ["policy.json", "policy.onnx"]  # the model and its sidecar, no temp file
+    assert sorted(os.listdir(tmp_path)) == [
+        "policy.json",
+        "policy.onnx",
+    ]  # the model and its sidecar, no temp file
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     assert [i.name for i in sess.get_inputs()] == ["obs_window"]
     env, policy, _, _ = loaded
@@ -178,8 +181,21 @@ def test_benchmark_episode_plays_that_trajectory_and_robot(run_dir, tmp_path, ca
     pose_bench, _, _ = bench.trajectories.evaluate(np.array([2.0]), rows=[3])
     assert np.array_equal(pose_env, pose_bench)
     assert env.intrinsics.trunk_mass_kg[0] == bench.robots.trunk_mass_kg[3 % 2]
-    assert main(["--checkpoint", str(run_dir), "--benchmark", str(bench_path), "--benchmark-episode", "9",
-                 "--steps", "1"]) == 2  # fmt: skip
+    assert (
+        main(
+            [
+                "--checkpoint",
+                str(run_dir),
+                "--benchmark",
+                str(bench_path),
+                "--benchmark-episode",
+                "9",
+                "--steps",
+                "1",
+            ]
+        )
+        == 2
+    )
     assert "--benchmark-episode must be in [0, 5]" in capsys.readouterr().err
 
 
@@ -244,9 +260,11 @@ def test_policy_checkpoint_is_small_plays_the_same_and_refuses_to_resume(run_dir
 @pytest.fixture(scope="module")
 def plain_env():
     """An env of its own (the render tests move its state)."""
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
-    env = MovingPlatformEnv({"num_envs": 1, "seed": 0})
+    env = MovingPlatformEnv(build_env_cfg({"num_envs": 1, "seed": 0}, schema=MovingPlatformCfg))
     env.reset()
     return env
 
@@ -272,7 +290,7 @@ def test_render_model_has_physics_layout_and_visual_only_decorations(plain_env):
 
 
 def test_physics_model_is_unchanged_by_rendering(plain_env):
-    from lasmp.envs.scene import build_model
+    from lasmp.envs.moving_platform.scene import build_model
     from lasmp.render.world import DECOR_PREFIX, build_render_model
 
     phys = plain_env.sim.model
@@ -375,10 +393,12 @@ def test_follow_camera_keeps_robot_in_frame(plain_env, gl, plf_pose):
 
 
 def test_render_model_of_rough_static_task():
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.rough_static.cfg import RoughStaticCfg
     from lasmp.envs.rough_static.env import RoughStaticEnv
     from lasmp.render.world import DECOR_PREFIX, build_render_model
 
-    env = RoughStaticEnv({"num_envs": 1})
+    env = RoughStaticEnv(build_env_cfg({"num_envs": 1}, schema=RoughStaticCfg))
     model = build_render_model(env)
     assert (model.nq, model.nv) == (env.sim.model.nq, env.sim.model.nv)
     decor = [i for i, name in enumerate(_geom_names(model)) if name.startswith(DECOR_PREFIX)]

@@ -7,10 +7,10 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from lasmp.envs import trajectories as trj
-from lasmp.eval.real_motion import bus as B
-from lasmp.eval.real_motion import lift as L
-from lasmp.eval.real_motion import profiles as P
-from lasmp.eval.real_motion.motion import derivatives, to_trajectories
+from lasmp.motions import bus as B
+from lasmp.motions import lift as L
+from lasmp.motions import profiles as P
+from lasmp.motions.motion import derivatives, to_trajectories
 
 REL = 1e-6  # analytic phases: peaks equal the parameters to rounding
 

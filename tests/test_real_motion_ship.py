@@ -1,4 +1,4 @@
-"""Tests for lasmp.eval.real_motion.ship: the JONSWAP sea, the ship's responses, the deck motion (fast)."""
+"""Tests for lasmp.motions.ship: the JONSWAP sea, the ship's responses, the deck motion (fast)."""
 
 import json
 
@@ -8,8 +8,8 @@ from scipy.integrate import quad
 from scipy.signal import welch
 
 from lasmp.envs import trajectories as trj
-from lasmp.eval.real_motion import ship as S
-from lasmp.eval.real_motion.motion import derivatives, to_trajectories
+from lasmp.motions import ship as S
+from lasmp.motions.motion import derivatives, to_trajectories
 
 G_M_S2 = 9.81
 LONG_DT_S = 0.5  # coarse samples for hour-long records: Nyquist 2 pi rad/s > the band's top for Tp >= 5 s
@@ -33,6 +33,47 @@ def test_jonswap_area_gives_hs_and_peaks_at_tp(gamma):
     assert peak_omega == pytest.approx(2 * np.pi / tp_s, rel=1e-3)
 
 
+@pytest.mark.parametrize(
+    ("hs_m", "tp_s", "gamma"),
+    [
+        (4.0, 6.0, 5.0),  # Tp / sqrt(Hs) = 3.0: a steep young sea
+        (1.0, 3.6, 5.0),  # the lower edge, 3.6
+        (4.0, 8.0, np.exp(5.75 - 1.15 * 4.0)),  # 4.0: in between, 3.16
+        (1.0, 4.5, np.exp(5.75 - 1.15 * 4.5)),  # 4.5: 1.78
+        (4.0, 10.0, 1.0),  # 5.0: the upper edge, Pierson-Moskowitz
+        (1.0, 9.0, 1.0),  # 9.0: fully developed
+    ],
+)
+def test_dnv_gamma_follows_the_rule_of_dnv_rp_c205(hs_m, tp_s, gamma):
+    assert S.dnv_gamma(hs_m, tp_s) == pytest.approx(gamma, rel=1e-12)
+
+
+def test_dnv_gamma_is_continuous_and_falls_with_the_period():
+    r = np.linspace(2.0, 7.0, 501)
+    g = np.array([S.dnv_gamma(1.0, x) for x in r])
+    assert np.all(np.diff(g) <= 0) and g[0] == 5.0 and g[-1] == 1.0
+    assert S.dnv_gamma(1.0, 3.6 + 1e-9) == pytest.approx(5.0, abs=0.01)  # exp(1.61) = 5.003
+    assert S.dnv_gamma(1.0, 5.0 - 1e-9) == pytest.approx(1.0, abs=1e-6)
+    assert S.dnv_gamma(4.0, 8.0) == S.dnv_gamma(1.0, 4.0)  # a function of Tp / sqrt(Hs) only
+    with pytest.raises(ValueError, match="hs_m"):
+        S.dnv_gamma(0.0, 8.0)
+
+
+def test_every_sea_state_preset_is_pierson_moskowitz_by_the_dnv_rule():
+    for name, (hs_m, tp_s) in S.SEA_STATES.items():
+        assert tp_s / np.sqrt(hs_m) >= 5.0, name
+        assert S.ship_deck(name, duration_s=1.0).params["gamma"] == 1.0
+    # None (the default) takes the rule; an explicit gamma is kept and changes the sea
+    default = S.ship_deck("sea_state_4", duration_s=30.0)
+    np.testing.assert_array_equal(default.pose, S.ship_deck("sea_state_4", gamma=1.0, duration_s=30.0).pose)
+    peaked = S.ship_deck("sea_state_4", gamma=3.3, duration_s=30.0)
+    assert peaked.params["gamma"] == 3.3 and np.max(np.abs(peaked.pose - default.pose)) > 0.01
+    np.testing.assert_allclose(
+        S.jonswap_spectrum(np.linspace(0.2, 2.0, 50), 2.0, 6.0),
+        S.jonswap_spectrum(np.linspace(0.2, 2.0, 50), 2.0, 6.0, S.dnv_gamma(2.0, 6.0)),
+    )
+
+
 def test_significant_height_of_a_long_record(three_hour_sea):
     _, eta_m, hs_m, _ = three_hour_sea
     assert abs(np.mean(eta_m)) < 0.02 * hs_m
@@ -40,7 +81,8 @@ def test_significant_height_of_a_long_record(three_hour_sea):
 
 
 def test_significant_height_scales_with_hs():
-    # the same draw with twice Hs: the record doubles (amplitudes are sqrt(S) ~ Hs)
+    # the same draw with twice Hs: the record doubles (amplitudes are sqrt(S) ~ Hs; Tp / sqrt(Hs) >= 5
+    # for both, so DNV's rule gives both the same gamma, 1)
     t_s = np.arange(0.0, 600.0, LONG_DT_S)
     eta_1 = S.wave_elevation(t_s, 1.0, 8.0, seed=5)
     eta_2 = S.wave_elevation(t_s, 2.0, 8.0, seed=5)

@@ -12,7 +12,7 @@ from lasmp.eval.cli import main as evaluate_main
 from lasmp.eval.metrics import METRICS
 from lasmp.eval.real_motion import suite as rm
 from lasmp.eval.real_motion.__main__ import main as suite_main
-from lasmp.eval.real_motion.motion import DEFAULT_DURATION_S, Motion, deck_pose, time_grid, to_trajectories
+from lasmp.motions.motion import DEFAULT_DURATION_S, Motion, deck_pose, time_grid, to_trajectories
 
 QUICK = ["lift_up", "bus_emergency_brake"]
 
@@ -61,7 +61,9 @@ def test_suite_overrides_reach_the_env_config():
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 
     def build(drive: str) -> MovingPlatformCfg:
-        return build_env_cfg(eval_env_overrides(2, 0, rm.env_overrides(20.0, drive)), schema=MovingPlatformCfg)
+        return build_env_cfg(
+            eval_env_overrides(2, 0, rm.env_overrides(20.0, drive)), schema=MovingPlatformCfg
+        )
 
     cfg = build("close")
     assert cfg.trajectory.duration_s == 20.0 and cfg.trajectory.split == "test"  # merged, not replaced
@@ -90,8 +92,22 @@ def test_close_drive_follows_the_scenario_and_the_paper_drive_filters_it(small_b
 
 def test_evaluate_suite_end_to_end(tmp_path, small_bench, capsys):
     out = tmp_path / "suite"
-    rc = evaluate_main(["--suite", "real_motion", "--controller", "stand_still", "--scenarios", *QUICK,
-                        "--robots-per-scenario", "2", "--benchmark", str(small_bench), "--out", str(out)])  # fmt: skip
+    rc = evaluate_main(
+        [
+            "--suite",
+            "real_motion",
+            "--controller",
+            "stand_still",
+            "--scenarios",
+            *QUICK,
+            "--robots-per-scenario",
+            "2",
+            "--benchmark",
+            str(small_bench),
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     result = json.loads((out / "metrics.json").read_text())
     assert result["suite"] == "real_motion" and result["num_episodes"] == 4
@@ -134,8 +150,18 @@ def test_evaluate_suite_bad_flags(argv, message, capsys):
 
 
 def test_evaluate_suite_unknown_scenario(small_bench, capsys):
-    rc = evaluate_main(["--suite", "real_motion", "--controller", "stand_still", "--scenarios", "rocket",
-                        "--benchmark", str(small_bench)])  # fmt: skip
+    rc = evaluate_main(
+        [
+            "--suite",
+            "real_motion",
+            "--controller",
+            "stand_still",
+            "--scenarios",
+            "rocket",
+            "--benchmark",
+            str(small_bench),
+        ]
+    )
     assert rc == 2 and "unknown scenario(s) ['rocket']" in capsys.readouterr().err
 
 

@@ -12,10 +12,10 @@ from scipy import integrate, signal
 from scipy.spatial.transform import Rotation
 
 from lasmp.envs import trajectories as trj
-from lasmp.eval.real_motion.aircraft import aircraft, dryden_roll_tf, dryden_vertical_tf
-from lasmp.eval.real_motion.motion import derivatives, to_trajectories
-from lasmp.eval.real_motion.noise import filtered_white_noise, random_phase_noise
-from lasmp.eval.real_motion.train import train
+from lasmp.motions.aircraft import aircraft, dryden_roll_tf, dryden_vertical_tf
+from lasmp.motions.motion import derivatives, to_trajectories
+from lasmp.motions.noise import filtered_white_noise, random_phase_noise
+from lasmp.motions.rail import track_psd_m2_per_rad_m, train
 
 G = 9.81
 E_RAIL_M = 1.5  # EN 13803 rail-centre distance for 1435 mm gauge
@@ -208,6 +208,50 @@ def test_train_vertical_vibration_rms_matches_the_fra_spectrum_through_the_suspe
     # a better track class is smoother: class 6 A_v = 0.0339 -> RMS ratio sqrt(0.0339 / 0.5376)
     z6 = train("straight", speed_mps=v, track_class=6, duration_s=300.0, seed=7).pose[m.t_s > 5.0, 2]
     assert np.sqrt(np.mean(z6**2)) / expected == pytest.approx(np.sqrt(0.0339 / 0.5376), rel=0.05)
+
+
+# FRA class -> (A_v cm^2 rad/m, Omega_s rad/m) as tabulated by Hamid and Yang (1981); Omega_c 0.8245
+FRA_CROSS_LEVEL = {4: (0.5376, 1.1312), 5: (0.2095, 0.8209), 6: (0.0339, 0.4380)}
+
+
+def fra_cross_level_psd(omega, track_class):
+    """FRA cross-level PSD, m^2 / (rad/m), with the class's own roll-off wavenumber Omega_s."""
+    a_v, omega_s = FRA_CROSS_LEVEL[track_class]
+    return 1e-4 * 4 * 0.25 * a_v * 0.8245**2 / ((omega**2 + 0.8245**2) * (omega**2 + omega_s**2))
+
+
+@pytest.mark.parametrize("track_class", [4, 5, 6])
+def test_fra_cross_level_rolls_off_at_the_class_own_omega_s(track_class):
+    omega = np.geomspace(2 * np.pi / 300.0, 2 * np.pi / 1.5, 50)
+    got = track_psd_m2_per_rad_m(omega, "roll", track_class)
+    np.testing.assert_allclose(got, fra_cross_level_psd(omega, track_class), rtol=1e-12)
+    # at long wavelengths S_c -> 4 k A_v / Omega_s^2: a larger Omega_s (class 4) means less cross-level
+    # than one Omega_s for every class would give, by (Omega_s / 0.4380)^2 (6.7x for class 4, 3.5x for 5)
+    a_v, omega_s = FRA_CROSS_LEVEL[track_class]
+    assert got[0] == pytest.approx(1e-4 * a_v / omega_s**2, rel=0.05)
+    # the profile and alignment spectra do not involve Omega_s
+    vertical = track_psd_m2_per_rad_m(omega, "vertical", track_class)
+    np.testing.assert_allclose(
+        vertical / track_psd_m2_per_rad_m(omega, "vertical", 6), a_v / 0.0339, rtol=1e-12
+    )
+
+
+@pytest.mark.parametrize("track_class", [4, 5])
+def test_train_roll_vibration_rms_matches_the_class_cross_level_spectrum(track_class):
+    v = 40.0
+    m = train("straight", speed_mps=v, track_class=track_class, duration_s=300.0, seed=11)
+    f_lo, f_hi = m.params["synthesis_band_hz"]
+
+    def h2(f):  # base-excited body roll, 0.8 Hz, zeta 0.2
+        s, wn = 2j * np.pi * f, 2 * np.pi * 0.8
+        return np.abs((0.4 * wn * s + wn**2) / (s**2 + 0.4 * wn * s + wn**2)) ** 2
+
+    def s_roll(f):  # cross-level met at speed v, per Hz, as a track roll angle c / e
+        return fra_cross_level_psd(2 * np.pi * f / v, track_class) * 2 * np.pi / v / E_RAIL_M**2
+
+    expected = np.sqrt(integrate.quad(lambda f: s_roll(f) * h2(f), f_lo, f_hi, limit=200)[0])
+    roll = m.pose[m.t_s > 5.0, 3]
+    assert np.sqrt(np.mean(roll**2)) == pytest.approx(expected, rel=0.05)
 
 
 def test_train_curve_that_cannot_be_reached_or_turns_too_far_is_refused():

@@ -41,8 +41,15 @@ def test_gae_matches_a_computation_by_hand_with_terminations_and_time_outs(tmp_p
     alg, env = runner.alg, runner.env
     gamma, lam = alg.gamma, alg.lam
     steps = runner.cfg["num_steps_per_env"]
-    rewards = torch.tensor([[0.5, -1.0, 2.0, 0.1], [1.0, 0.0, -0.5, 0.3], [0.2, 0.7, 0.0, -0.2],
-                            [-0.3, 0.4, 1.5, 0.9], [0.6, -0.8, 0.2, 0.05]])  # fmt: skip
+    rewards = torch.tensor(
+        [
+            [0.5, -1.0, 2.0, 0.1],
+            [1.0, 0.0, -0.5, 0.3],
+            [0.2, 0.7, 0.0, -0.2],
+            [-0.3, 0.4, 1.5, 0.9],
+            [0.6, -0.8, 0.2, 0.05],
+        ]
+    )
     # env 0 terminates at step 1, env 1 times out at step 2, env 2 both (different steps), env 3 runs on
     dones = torch.tensor([[0, 0, 0, 0], [1, 0, 1, 0], [0, 1, 0, 0], [0, 0, 0, 0], [0, 0, 1, 0]])
     time_outs = torch.tensor([[0, 0, 0, 0], [0, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0], [0, 0, 1, 0]])
@@ -110,7 +117,9 @@ def test_non_finite_parameter_raises_and_never_overwrites_a_good_checkpoint(tmp_
         runner.save(str(good))
     assert good.read_bytes() == before
     assert read_checkpoint(good)["iter"] == 0
-    assert sorted(p.name for p in tmp_path.iterdir() if p.is_file() and "tfevents" not in p.name) == ["model_0.pt"]
+    assert sorted(p.name for p in tmp_path.iterdir() if p.is_file() and "tfevents" not in p.name) == [
+        "model_0.pt"
+    ]
 
 
 def test_a_save_killed_mid_write_leaves_the_previous_checkpoint_intact(tmp_path):
@@ -169,13 +178,27 @@ def test_a_checkpoint_without_random_states_still_loads(tmp_path):
 
 
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_signal_during_train_py_saves_the_current_iteration_and_prints_the_resume_command(tmp_path, signum, code):
+def test_signal_during_train_py_saves_the_current_iteration_and_prints_the_resume_command(
+    tmp_path, signum, code
+):
     run = tmp_path / "run"
-    args = ["env.num_envs=4", "torch_threads=1", "policy.actor_hidden_dims=[32,32,32]", "runner.max_iterations=500",
-            "runner.save_interval=1000", f"runner.log_dir={run}"]  # fmt: skip
+    args = [
+        "env.num_envs=4",
+        "torch_threads=1",
+        "policy.actor_hidden_dims=[32,32,32]",
+        "runner.max_iterations=500",
+        "runner.save_interval=1000",
+        f"runner.log_dir={run}",
+    ]
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen([sys.executable, str(ROOT / "train.py"), *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=tmp_path, env=env)  # fmt: skip
+    proc = subprocess.Popen(
+        [sys.executable, str(ROOT / "train.py"), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+        env=env,
+    )
     try:
         iterations = 0
         deadline = time.monotonic() + 300
@@ -201,8 +224,14 @@ def test_signal_during_train_py_saves_the_current_iteration_and_prints_the_resum
 
     resume = command.split()[2:]
     resume = [a if not a.startswith("runner.max_iterations=") else "runner.max_iterations=1" for a in resume]
-    again = subprocess.run([sys.executable, str(ROOT / "train.py"), *resume], capture_output=True, text=True,
-                           cwd=tmp_path, env=env, timeout=300)  # fmt: skip
+    again = subprocess.run(
+        [sys.executable, str(ROOT / "train.py"), *resume],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=env,
+        timeout=300,
+    )
     assert again.returncode == 0, again.stderr[-2000:]
     assert f"at iteration {stopped_at + 1}" in again.stdout
     assert read_checkpoint(run)["iter"] == stopped_at + 1
@@ -210,7 +239,11 @@ def test_signal_during_train_py_saves_the_current_iteration_and_prints_the_resum
 
 @pytest.mark.parametrize(
     ("task", "backend"),
-    [("moving_platform", "cpu"), ("rough_static", "cpu"), pytest.param("moving_platform", "warp", marks=pytest.mark.warp)],
+    [
+        ("moving_platform", "cpu"),
+        ("rough_static", "cpu"),
+        pytest.param("moving_platform", "warp", marks=pytest.mark.warp),
+    ],
 )
 def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, task, backend):
     over = {}
@@ -225,8 +258,11 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
         register_configs()
         with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
             base = compose("config", overrides=["task=rough_static", "env.num_envs=4"])
-        over = {"task": "rough_static", "policy": OmegaConf.to_container(base.policy),
-                "env": OmegaConf.to_container(base.env)}  # fmt: skip
+        over = {
+            "task": "rough_static",
+            "policy": OmegaConf.to_container(base.policy),
+            "env": OmegaConf.to_container(base.env),
+        }
     # algo: the estimate-rollout schedule switches within the run, so the resume must get it right too
     algo = {"estimate_rollout_every": 2, "estimate_rollout_start": 1}
     straight = train(tiny(tmp_path / "a", runner={"max_iterations": 4}, algo=algo, **over))
@@ -257,8 +293,16 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
     assert log_a["rewards"] == log_b["rewards"] and log_a["lengths"] == log_b["lengths"]
     # control: the same resume with the envs restarting their episodes is *not* the same run
     control = make_runner(tiny(tmp_path / "c", algo=algo, **over), None)
-    control.load(resume, load_cfg={"actor": True, "critic": True, "optimizer": True, "iteration": True,
-                                   "env_run_state": False})  # fmt: skip
+    control.load(
+        resume,
+        load_cfg={
+            "actor": True,
+            "critic": True,
+            "optimizer": True,
+            "iteration": True,
+            "env_run_state": False,
+        },
+    )
     control.learn(2)
     weights = control.alg.get_policy().state_dict()
     assert not all(torch.equal(v, weights[k]) for k, v in a["actor_state_dict"].items())
@@ -267,23 +311,32 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
 def test_a_running_state_from_another_env_version_or_backend_is_refused_with_a_warning():
     """A running state saved by the numpy env (before the GPU backend: no format mark) or by another
     backend cannot be restored into this env: it is skipped with a warning, the episodes restart."""
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
-    env = MovingPlatformEnv({"num_envs": 2, "seed": 0, "sim": {"num_threads": 1}})
+    def make(seed):
+        return MovingPlatformEnv(
+            build_env_cfg({"num_envs": 2, "seed": seed, "sim": {"num_threads": 1}}, schema=MovingPlatformCfg)
+        )
+
+    env = make(0)
     env.reset()
     for _ in range(3):
         env.step(torch.zeros(2, 12))
     saved = env.state_dict()
-    fresh = MovingPlatformEnv({"num_envs": 2, "seed": 1, "sim": {"num_threads": 1}})
+    fresh = make(1)
     fresh.load_state_dict(copy.deepcopy(saved))  # the same format and backend: restored
-    assert torch.equal(fresh.sim.qpos, env.sim.qpos) and torch.equal(fresh.episode_length_buf, env.episode_length_buf)
+    assert torch.equal(fresh.sim.qpos, env.sim.qpos) and torch.equal(
+        fresh.episode_length_buf, env.episode_length_buf
+    )
     for key, value in (("format", None), ("backend", "warp")):
         other = copy.deepcopy(saved)
         if value is None:
             del other["run"][key]
         else:
             other["run"][key] = value
-        target = MovingPlatformEnv({"num_envs": 2, "seed": 1, "sim": {"num_threads": 1}})
+        target = make(1)
         with pytest.warns(UserWarning, match="saved by another env"):
             target.load_state_dict(other)
         assert not torch.equal(target.sim.qpos, env.sim.qpos)  # not restored

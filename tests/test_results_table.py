@@ -53,8 +53,19 @@ def test_a_single_seed_gives_a_null_interval_in_strict_json(tmp_path, capsys):
 def test_method_groups_print_mean_plus_minus_ci95_per_method(tmp_path, capsys):
     lasmp = [write(tmp_path, f"lasmp/seed{k}", c) for k, c in enumerate((0.2, 0.3, 0.4))]
     ss = write(tmp_path, "ss", 0.65)
-    rt.main(["--method", "LAS-MP", *map(str, lasmp), "--method", "Stand Still", str(ss), "--json",
-             str(tmp_path / "s.json"), "--paper-columns"])  # fmt: skip
+    rt.main(
+        [
+            "--method",
+            "LAS-MP",
+            *map(str, lasmp),
+            "--method",
+            "Stand Still",
+            str(ss),
+            "--json",
+            str(tmp_path / "s.json"),
+            "--paper-columns",
+        ]
+    )
     out = capsys.readouterr().out
     half = T_975_2 * 0.1 / math.sqrt(3)
     assert f"| LAS-MP | 0.300 ± {half:.3f} | 0.500 ± 0.000 |" in out
@@ -66,10 +77,15 @@ def test_method_groups_print_mean_plus_minus_ci95_per_method(tmp_path, capsys):
 
 def test_results_table_rows_and_refusals(tmp_path, capsys):
     est = {"x_exp_mean_abs_error": {"contact_FR": 0.1, "v_body_x": 0.2}, "l_imp_mean_l2_error": 0.3}
-    dirs = [write(tmp_path, "ss", 0.65), write(tmp_path, "lasmp", 0.25, est),
-            write(tmp_path, "noexp", 0.3, {"x_exp_mean_abs_error": {}, "l_imp_mean_l2_error": 0.4})]  # fmt: skip
-    rt.main([str(d) for d in dirs] + ["--labels", "Stand Still", "LAS-MP", "no explicit", "--json",
-                                      str(tmp_path / "s.json")])  # fmt: skip
+    dirs = [
+        write(tmp_path, "ss", 0.65),
+        write(tmp_path, "lasmp", 0.25, est),
+        write(tmp_path, "noexp", 0.3, {"x_exp_mean_abs_error": {}, "l_imp_mean_l2_error": 0.4}),
+    ]
+    rt.main(
+        [str(d) for d in dirs]
+        + ["--labels", "Stand Still", "LAS-MP", "no explicit", "--json", str(tmp_path / "s.json")]
+    )
     out = capsys.readouterr().out
     assert "| Stand Still | 0.650 |" in out and "| LAS-MP | 0.250 |" in out  # one seed each: the value alone
     assert "| LAS-MP | 0.100 | 0.200 | 0.300 |" in out  # the estimator table: only methods that estimate
@@ -86,11 +102,13 @@ def test_results_table_rows_and_refusals(tmp_path, capsys):
 
 def test_the_command_refuses_bad_groups_and_corrupt_results(tmp_path, capsys):
     ss = write(tmp_path, "ss", 0.65)
-    for argv, message in ((["--method"], "--method needs a NAME and at least one DIR"),
-                          (["--method", "A"], "give at least one evaluation directory"),
-                          (["--method", "A", "--json", "x"], "give at least one evaluation directory"),
-                          (["--method", "A", str(ss), "--method", "A", str(ss)], "a method is named twice"),
-                          ([], "give --method NAME DIR")):  # fmt: skip
+    for argv, message in (
+        (["--method"], "--method needs a NAME and at least one DIR"),
+        (["--method", "A"], "give at least one evaluation directory"),
+        (["--method", "A", "--json", "x"], "give at least one evaluation directory"),
+        (["--method", "A", str(ss), "--method", "A", str(ss)], "a method is named twice"),
+        ([], "give --method NAME DIR"),
+    ):
         with pytest.raises(SystemExit):
             rt.main(argv)
         assert message in capsys.readouterr().err

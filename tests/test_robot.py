@@ -9,11 +9,22 @@ import numpy as np
 import pytest
 import torch
 
+from lasmp.config import build_env_cfg
 from lasmp.envs.moving_platform import env as moving_platform_env
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.envs.moving_platform.readout import Readout, read
-from lasmp.envs.robot import OBS_DIM, as_slice, proprioception, read_robot, screen_faults, take_columns
+from lasmp.envs.robot import (
+    OBS_DIM,
+    as_slice,
+    proprioception,
+    read_robot,
+    screen_faults,
+    step_gait_phase,
+    take_columns,
+)
 from lasmp.envs.rough_static import env as rough_static_env
+from lasmp.envs.rough_static.cfg import RoughStaticCfg
 from lasmp.envs.rough_static.env import RoughStaticEnv
 from lasmp.modules.obs_groups import GYRO_Z_COL
 from lasmp.robots import a1
@@ -23,7 +34,8 @@ MAX_JOINT_VEL_RAD_S = 100.0
 
 @pytest.fixture(scope="module")
 def envs() -> tuple[MovingPlatformEnv, RoughStaticEnv]:
-    mp, rs = MovingPlatformEnv({"num_envs": 4}), RoughStaticEnv({"num_envs": 4})
+    mp = MovingPlatformEnv(build_env_cfg({"num_envs": 4}, schema=MovingPlatformCfg))
+    rs = RoughStaticEnv(build_env_cfg({"num_envs": 4}, schema=RoughStaticCfg))
     for env in (mp, rs):
         env.reset()
     return mp, rs
@@ -78,3 +90,45 @@ def test_take_columns_copies_the_columns_as_a_slice_or_a_gather():
         assert torch.equal(taken, x.index_select(1, index))
         x[:, index] += 100.0  # a copy, not a view of the live array
         assert not torch.equal(taken, x.index_select(1, index))
+
+
+def test_gait_phase_events_and_the_phases_that_end():
+    """One foot (of 4, one env): air 3 steps, contact 2, air 1, contact; dt 0.5 s."""
+    dt = 0.5
+    contact_prev = torch.zeros(1, 4, dtype=torch.bool)
+    t_air, t_contact = torch.zeros(1, 4, dtype=torch.float64), torch.zeros(1, 4, dtype=torch.float64)
+    seen = []
+    for c in (0, 0, 0, 1, 1, 0, 1):
+        contact = torch.tensor([[bool(c), False, True, False]])
+        g = step_gait_phase(contact, contact_prev, t_air, t_contact, dt)
+        seen.append(
+            (
+                bool(g.touchdown[0, 0]),
+                bool(g.liftoff[0, 0]),
+                float(g.t_air_s[0, 0]),
+                float(g.t_contact_s[0, 0]),
+            )
+        )
+        assert torch.equal(contact_prev, contact)
+    assert seen == [(False, False, 0.0, 0.0)] * 3 + [
+        (True, False, 1.5, 0.0),
+        (False, False, 0.0, 0.0),
+        (False, True, 0.0, 1.0),
+        (True, False, 0.5, 0.0),
+    ]
+    # foot 2 stands from the start: a touchdown at the first step, after no air time; foot 3 never lands
+    assert (t_contact[0, 2], t_air[0, 3], t_air[0, 2], t_contact[0, 3]) == (7 * dt, 7 * dt, 0.0, 0.0)
+    # a task that does not track contact phases
+    assert step_gait_phase(contact, contact_prev, t_air, None, dt).t_contact_s is None
+
+
+def test_gait_phase_keeps_a_copy_of_the_contacts_not_the_readouts_own():
+    """A reset sets rows of the task's `contact_prev` to False, and the moving-platform readout is
+    updated in place where envs reset: neither may change the other."""
+    contact_prev = torch.zeros(2, 4, dtype=torch.bool)
+    contact = torch.ones(2, 4, dtype=torch.bool)  # the readout's foot_contact
+    step_gait_phase(contact, contact_prev, torch.zeros(2, 4), torch.zeros(2, 4), 0.02)
+    contact_prev[1] = False  # a reset of env 1
+    assert contact.all()
+    contact[0] = False  # the readout's row 0 read anew
+    assert contact_prev[0].all()

@@ -9,7 +9,8 @@ import pytest
 import torch
 
 from lasmp.config import ConfigError, build_env_cfg
-from lasmp.envs.moving_platform.rewards import RewardManager
+from lasmp.envs.moving_platform.rewards import REWARD_TERMS as MOVING_PLATFORM_TERMS
+from lasmp.envs.rewards import RewardManager
 from lasmp.envs.robot import read_robot
 from lasmp.envs.rough_static import rewards as rw
 from lasmp.envs.rough_static.cfg import RoughStaticCfg
@@ -19,7 +20,7 @@ from lasmp.robots import a1
 
 
 def make(n=4, **cfg) -> RoughStaticEnv:
-    env = RoughStaticEnv({"num_envs": n, **cfg})
+    env = RoughStaticEnv(build_env_cfg({"num_envs": n, **cfg}, schema=RoughStaticCfg))
     env.reset()
     return env
 
@@ -43,7 +44,9 @@ def test_observation_groups_have_the_moving_platform_sizes():
     assert torch.all(obs["priv_explicit"][:, 7:] == 0)  # static ground: no platform velocities
     assert torch.equal(obs["command"], torch.as_tensor(env.command, dtype=torch.float32))
     assert env.max_episode_length == 1000 and env.num_actions == 12
-    assert env.state_dict(run=False) == {} and env.state_dict()["run"]["num_envs"] == env.num_envs  # no curriculum
+    assert (
+        env.state_dict(run=False) == {} and env.state_dict()["run"]["num_envs"] == env.num_envs
+    )  # no curriculum
 
 
 def test_robot_spawns_above_the_terrain_touching_nothing():
@@ -137,9 +140,7 @@ def _state(**kw) -> rw.RoughStepState:
 
 
 def _total(s: rw.RoughStepState, term: str) -> float:
-    m = RewardManager(
-        {term: rw.DEFAULT_REWARD_WEIGHTS[term]}, rw.RoughRewardParams(), 1, registry=rw.REWARD_TERMS
-    )
+    m = RewardManager(rw.REWARD_TERMS, {term: rw.DEFAULT_REWARD_WEIGHTS[term]}, rw.RoughRewardsCfg(), 1)
     return float(m.compute(s)[0])
 
 
@@ -173,8 +174,8 @@ def test_reward_terms_have_the_right_signs():
         _total(_state(command=cmd, touchdown=td, t_air_s=torch.tensor([[0.1, 0, 0, 0]])), "feet_air_time") < 0
     )
     assert _total(_state(touchdown=td, t_air_s=torch.tensor([[0.7, 0, 0, 0]])), "feet_air_time") == 0.0
-    with pytest.raises(ValueError, match="track_lin_vel_xy"):  # the default registry is unchanged
-        RewardManager({"track_lin_vel_xy": 1.0}, None, 1)
+    with pytest.raises(ValueError, match="track_lin_vel_xy"):  # the moving-platform registry is unchanged
+        RewardManager(MOVING_PLATFORM_TERMS, {"track_lin_vel_xy": 1.0}, None, 1)
 
 
 def test_body_contact_terminates_and_time_out_is_a_truncation():

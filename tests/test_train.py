@@ -81,7 +81,9 @@ def test_ppo_update_leaves_estimators_alone_and_roa_moves_them(tmp_path):
 
 
 def test_iterations_on_the_estimates_follow_the_schedule_and_keep_ppo_off_the_estimators(tmp_path):
-    runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 3, "estimate_rollout_start": 10}), None)
+    runner = make_runner(
+        tiny(tmp_path, algo={"estimate_rollout_every": 3, "estimate_rollout_start": 10}), None
+    )
     alg, actor = runner.alg, runner.alg.get_policy()
     assert [it for it in range(8, 20) if alg.acts_on_estimates(it)] == [10, 13, 16, 19]
     assert alg.iteration == 0 and not actor.act_on_estimates
@@ -101,12 +103,16 @@ def test_iterations_on_the_estimates_follow_the_schedule_and_keep_ppo_off_the_es
     alg.update_roa = lambda: {}  # PPO's own update only, on the estimates
     losses = alg.update()
     assert losses["Policy/acts_on_estimates"] == 1.0
-    assert not changed(before, actor, "explicit_estimator") and not changed(before, actor, "implicit_estimator")
+    assert not changed(before, actor, "explicit_estimator") and not changed(
+        before, actor, "implicit_estimator"
+    )
     assert changed(before, actor, "mlp")
 
 
 def test_each_iteration_of_a_run_acts_as_the_schedule_says(tmp_path):
-    runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 2, "estimate_rollout_start": 1}), None)
+    runner = make_runner(
+        tiny(tmp_path, algo={"estimate_rollout_every": 2, "estimate_rollout_start": 1}), None
+    )
     modes = []
     real = runner.alg.update
 
@@ -179,8 +185,16 @@ def test_a_learner_resumed_from_the_studys_checkpoint_goes_on_at_its_place_in_th
     cfg = checkpoint_cfg(data, num_envs=4, seed=0)
     assert (cfg.algo.estimate_rollout_start, cfg.algo.estimate_rollout_every) == (100, 1)
     runner = make_runner(cfg, None)
-    runner.load(data, load_cfg={"actor": True, "critic": True, "optimizer": True, "iteration": True,
-                                "env_run_state": False})  # fmt: skip
+    runner.load(
+        data,
+        load_cfg={
+            "actor": True,
+            "critic": True,
+            "optimizer": True,
+            "iteration": True,
+            "env_run_state": False,
+        },
+    )
     alg = runner.alg
     assert alg.iteration == runner.current_learning_iteration == 450
     assert alg.get_policy().act_on_estimates
@@ -192,7 +206,9 @@ def test_the_divergence_guard_is_the_learners_own_and_stops_a_non_finite_loss(tm
     assert "update" not in vars(alg)  # PPOROA.update itself, nobody's patch
     _learner_rollout(alg, env, steps)
     alg.storage.observations[GROUP_HISTORY][0, 0] = float("nan")  # one sample, read by the ROA pass alone
-    with pytest.raises(FloatingPointError, match=r"non-finite loss after the update of iteration 1: .*roa_exp"):
+    with pytest.raises(
+        FloatingPointError, match=r"non-finite loss after the update of iteration 1: .*roa_exp"
+    ):
         alg.update()
     assert alg.iteration == 0  # the diverged update does not count
 
@@ -269,8 +285,11 @@ def test_checkpoint_round_trip_and_exact_resume(tmp_path):
     assert resumed.current_learning_iteration == runner.current_learning_iteration + 1
     assert resumed.env.curriculum.level == 7
     assert resumed.alg.learning_rate == pytest.approx(0.000123)
-    for (k, v), (k2, v2) in zip(runner.alg.get_policy().state_dict().items(),
-                                resumed.alg.get_policy().state_dict().items(), strict=True):  # fmt: skip
+    for (k, v), (k2, v2) in zip(
+        runner.alg.get_policy().state_dict().items(),
+        resumed.alg.get_policy().state_dict().items(),
+        strict=True,
+    ):
         assert k == k2 and torch.equal(v, v2), k
 
 
@@ -329,8 +348,10 @@ def test_presets_and_overrides_compose():
     with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
         cpu = compose("config")
         paper = compose("config", overrides=["preset=paper"])
-        custom = compose("config", overrides=["env.num_envs=8", "runner.max_iterations=3", "seed=5",
-                                               "runner.log_dir=/tmp/x"])  # fmt: skip
+        custom = compose(
+            "config",
+            overrides=["env.num_envs=8", "runner.max_iterations=3", "seed=5", "runner.log_dir=/tmp/x"],
+        )
     assert (cpu.env.num_envs, cpu.runner.max_iterations, cpu.device) == (1024, 1000, "cpu")
     assert (paper.env.num_envs, paper.runner.max_iterations, paper.device) == (8192, 4000, "cuda")
     assert (custom.env.num_envs, custom.runner.max_iterations, custom.seed) == (8, 3, 5)
@@ -348,8 +369,14 @@ def test_invalid_training_config_names_the_field():
 
 def run_cli(*args, cwd):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    return subprocess.run([sys.executable, str(ROOT / "train.py"), *args], capture_output=True, text=True,
-                          cwd=cwd, env=env, timeout=600)  # fmt: skip
+    return subprocess.run(
+        [sys.executable, str(ROOT / "train.py"), *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=env,
+        timeout=600,
+    )
 
 
 def test_train_cli_end_to_end_then_resume(tmp_path):
@@ -363,8 +390,13 @@ def test_train_cli_end_to_end_then_resume(tmp_path):
     assert any(p.name.startswith("events.out.tfevents") for p in run.iterdir())
     assert OmegaConf.load(run / "config.yaml").env.num_envs == 8
 
-    out = run_cli(*common, "runner.max_iterations=1", f"resume={run}", f"runner.log_dir={tmp_path / 'run2'}",
-                  cwd=tmp_path)  # fmt: skip
+    out = run_cli(
+        *common,
+        "runner.max_iterations=1",
+        f"resume={run}",
+        f"runner.log_dir={tmp_path / 'run2'}",
+        cwd=tmp_path,
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     assert "at iteration 2" in out.stdout
     assert [line.split("|")[0].strip() for line in out.stdout.splitlines() if line.startswith("it ")] == [
@@ -378,9 +410,17 @@ def test_train_cli_end_to_end_then_resume(tmp_path):
 
 def test_rough_static_task_trains_the_rs_policy(tmp_path):
     with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
-        cfg = compose("config", overrides=["task=rough_static", "env.num_envs=4", "runner.max_iterations=1",
-                                           f"runner.log_dir={tmp_path}", "torch_threads=1",
-                                           "policy.actor_hidden_dims=[32,32,32]"])  # fmt: skip
+        cfg = compose(
+            "config",
+            overrides=[
+                "task=rough_static",
+                "env.num_envs=4",
+                "runner.max_iterations=1",
+                f"runner.log_dir={tmp_path}",
+                "torch_threads=1",
+                "policy.actor_hidden_dims=[32,32,32]",
+            ],
+        )
     assert cfg.policy.name == "rs"  # the task picks its policy
     runner = train(cfg)
     actor = runner.alg.get_policy()
@@ -390,8 +430,12 @@ def test_rough_static_task_trains_the_rs_policy(tmp_path):
     assert data["config"]["task"] == "rough_static" and "command" in data["obs_layout"]
 
 
-def test_an_iteration_on_the_estimates_updates_on_the_very_estimates_its_rollout_acted_on(tmp_path, monkeypatch):
-    runner = make_runner(tiny(tmp_path, algo={"estimate_rollout_every": 1, "estimate_rollout_start": 0}), None)
+def test_an_iteration_on_the_estimates_updates_on_the_very_estimates_its_rollout_acted_on(
+    tmp_path, monkeypatch
+):
+    runner = make_runner(
+        tiny(tmp_path, algo={"estimate_rollout_every": 1, "estimate_rollout_start": 0}), None
+    )
     alg, actor = runner.alg, runner.alg.get_policy()
     assert alg.iteration == 0 and actor.act_on_estimates  # the schedule: on from iteration 0
     rollout(runner)
@@ -417,7 +461,9 @@ def test_an_iteration_on_the_estimates_updates_on_the_very_estimates_its_rollout
     alg.update_roa = lambda: {}
     alg.update()
     assert calls == [] and len(handed) == 1 and torch.equal(handed[0], kept)  # bit for bit, none recomputed
-    assert GROUP_DETACHED_ESTIMATES not in alg.storage.observations.keys()  # the next rollout writes without it
+    assert (
+        GROUP_DETACHED_ESTIMATES not in alg.storage.observations.keys()
+    )  # the next rollout writes without it
     # an update on the estimates after a rollout that did not keep them computes them, once
     actor.act_on_estimates = False
     rollout(runner)
@@ -509,9 +555,13 @@ def test_compiled_mlps_train_and_save_the_same_parameter_names(tmp_path):
 def _batch_fields(batch) -> list[torch.Tensor]:
     obs = batch.observations
     return [obs[k] for k in sorted(obs.keys())] + [
-        batch.actions, batch.values, batch.advantages, batch.returns, batch.old_actions_log_prob,
+        batch.actions,
+        batch.values,
+        batch.advantages,
+        batch.returns,
+        batch.old_actions_log_prob,
         *batch.old_distribution_params,
-    ]  # fmt: skip
+    ]
 
 
 def test_rsl_rl_visits_the_same_mini_batches_in_every_epoch(tmp_path):

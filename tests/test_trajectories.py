@@ -147,7 +147,7 @@ def test_c2_continuity_at_breaks(which, request):
 
 
 def test_testing_split_matches_the_papers_statistics():
-    """SPEC §4: the paper's testing set has a mean path length of 7.12 m and mean speed of 0.69 m/s."""
+    """docs/trajectories.md: the paper's testing set has a mean path length of 7.12 m and mean speed of 0.69 m/s."""
     st = T.statistics(T.sample(2000, T.TEST_RANGES, np.random.default_rng(11)))["overall"]
     assert st["mean_path_length_m"] == pytest.approx(7.12, rel=0.10)
     assert st["mean_speed_mps"] == pytest.approx(0.69, rel=0.10)
@@ -307,7 +307,9 @@ def test_old_version_file_gets_a_clear_error(tmp_path):
     """A version-1 file (the old interpolating generator, no construction recorded) is never misread."""
     p = tmp_path / "old.npz"
     _write_waypoints_file(p, version=np.array(1), spline=None, spline_degree=None)
-    with pytest.raises(T.TrajectoryFileError, match=r"old\.npz: unsupported version 1, expected 2.*Regenerate"):
+    with pytest.raises(
+        T.TrajectoryFileError, match=r"old\.npz: unsupported version 1, expected 2.*Regenerate"
+    ):
         T.load(p)
 
 

@@ -21,8 +21,8 @@ from lasmp.envs.backends import make_backend  # noqa: E402
 from lasmp.envs.backends.cpu import CpuBatchSim  # noqa: E402
 from lasmp.envs.backends.warp import WarpSim  # noqa: E402
 from lasmp.envs.moving_platform.cfg import PlatformCfg  # noqa: E402
+from lasmp.envs.moving_platform.scene import PLATFORM_JOINTS, build_model, platform_top_z_m  # noqa: E402
 from lasmp.envs.robot import RobotIndex  # noqa: E402
-from lasmp.envs.scene import PLATFORM_JOINTS, build_model, platform_top_z_m  # noqa: E402
 from lasmp.robots import a1  # noqa: E402
 
 pytestmark = pytest.mark.warp

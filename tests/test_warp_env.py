@@ -14,6 +14,8 @@ import torch
 
 pytest.importorskip("mujoco_warp", reason="the gpu extra is not installed: pip install -e '.[gpu]'")
 
+from lasmp.config import build_env_cfg  # noqa: E402
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg  # noqa: E402
 from lasmp.envs.moving_platform.env import MovingPlatformEnv  # noqa: E402
 from lasmp.eval import benchmark as bm  # noqa: E402
 from lasmp.eval.cli import eval_env_overrides  # noqa: E402
@@ -27,7 +29,8 @@ AMPLITUDE = 0.1
 
 
 def _env(backend: str, n: int, seed: int, **sim) -> MovingPlatformEnv:
-    return MovingPlatformEnv({"num_envs": n, "seed": seed, "backend": backend, "sim": {"num_threads": 1, **sim}})
+    overrides = {"num_envs": n, "seed": seed, "backend": backend, "sim": {"num_threads": 1, **sim}}
+    return MovingPlatformEnv(build_env_cfg(overrides, schema=MovingPlatformCfg))
 
 
 def _max_abs_per_env(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -64,8 +67,12 @@ def test_both_backends_agree_over_100_policy_steps():
         dones = [env.step(a)[2] for env in (cpu, loose, warp)]
         assert not any(d.any() for d in dones), "no env may end within 2 s of this sway"
         for key in err:
-            err[key] = torch.maximum(err[key], _max_abs_per_env(getattr(warp.sim, key), getattr(cpu.sim, key)))
-            slack[key] = torch.maximum(slack[key], _max_abs_per_env(getattr(loose.sim, key), getattr(cpu.sim, key)))
+            err[key] = torch.maximum(
+                err[key], _max_abs_per_env(getattr(warp.sim, key), getattr(cpu.sim, key))
+            )
+            slack[key] = torch.maximum(
+                slack[key], _max_abs_per_env(getattr(loose.sim, key), getattr(cpu.sim, key))
+            )
         contact_agree.append((warp.readout.foot_contact == cpu.readout.foot_contact).float().mean())
     print(f"warp vs C per env: {err}; C at tolerance 1e-6 vs 1e-8: {slack}")
     assert (err["qpos"] <= 1e-4 + 2 * slack["qpos"]).all(), (err, slack)
@@ -83,9 +90,11 @@ def test_stand_still_collides_in_the_same_benchmark_episodes():
     bench = bm.generate(num_trajectories=16, num_robots=16, seed=0)
     outcomes = {}
     for backend, device in (("cpu", "cpu"), ("warp", "cpu")):
-        env = MovingPlatformEnv({**eval_env_overrides(16, 0), "backend": backend, "sim": {"num_threads": 1}},
-                                device=device)  # fmt: skip
+        overrides = {**eval_env_overrides(16, 0), "backend": backend, "sim": {"num_threads": 1}}
+        env = MovingPlatformEnv(build_env_cfg(overrides, schema=MovingPlatformCfg), device=device)
         out = run_benchmark(env, lambda obs: torch.zeros(16, 12), bench, 16, progress=False)
         outcomes[backend] = out["episodes"]["collision"]
-    assert 0 < outcomes["cpu"].sum() < 16, "the episodes must hold both outcomes for the test to mean anything"
+    assert 0 < outcomes["cpu"].sum() < 16, (
+        "the episodes must hold both outcomes for the test to mean anything"
+    )
     np.testing.assert_array_equal(outcomes["warp"], outcomes["cpu"])

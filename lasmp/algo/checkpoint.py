@@ -137,13 +137,17 @@ def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False) -> 
     dst = Path(dst)
     if dst.exists() and not force:
         if dst.resolve() == Path(data["path"]).resolve():
-            what = "is the checkpoint it is made from: writing over it would drop its optimizers' states " \
-                   "and running state, so that the run could no longer be resumed"  # fmt: skip
+            what = (
+                "is the checkpoint it is made from: writing over it would drop its optimizers' states "
+                "and running state, so that the run could no longer be resumed"
+            )
         else:
             what = f"exists ({_kind_of(dst)})"
         raise CheckpointError(f"{dst} {what}: give another OUT, or --force to overwrite it")
     slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
-    slim["env_state"] = {k: v for k, v in (data.get("env_state") or {}).items() if k != "run"}  # task state only
+    slim["env_state"] = {
+        k: v for k, v in (data.get("env_state") or {}).items() if k != "run"
+    }  # task state only
     slim.update(kind="policy", source=f"{Path(data['path']).name} (iteration {data['iter']})")
     check_finite(slim, f"refusing to write {dst}")
     atomic_torch_save(slim, dst)
@@ -207,8 +211,9 @@ def set_rng_state(state: dict, env_rng: np.random.Generator) -> None:
     env_rng.bit_generator.state = state["numpy_env"]
 
 
-def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | None = None,
-                   env_overrides: dict | None = None):  # fmt: skip
+def checkpoint_cfg(
+    data: dict, num_envs: int, seed: int, trajectories: str | None = None, env_overrides: dict | None = None
+):
     """The TrainCfg saved in a checkpoint, with only num_envs, seed (and trajectory file, and the
     given nested env overrides) changed; CheckpointError if today's code cannot rebuild it."""
     from omegaconf import OmegaConf
@@ -224,7 +229,9 @@ def checkpoint_cfg(data: dict, num_envs: int, seed: int, trajectories: str | Non
         conf.device = "cpu"
         conf.resume = None
         conf.runner.log_dir = None
-        conf.runner.logger = "tensorboard"  # it logs nothing: a W&B or Neptune run plays without their package
+        conf.runner.logger = (
+            "tensorboard"  # it logs nothing: a W&B or Neptune run plays without their package
+        )
         if trajectories is not None:
             conf.env.trajectory.file = str(trajectories)
         conf.env = OmegaConf.merge(conf.env, OmegaConf.create(env_overrides or {}))
@@ -250,8 +257,11 @@ def main(argv=None) -> int:
     pol.add_argument("--force", action="store_true", help="overwrite DST if it exists (even when it is SRC)")
     inf = sub.add_parser("info", help="iteration, task, policy, size and kind of a checkpoint")
     inf.add_argument("path")
-    conv = sub.add_parser("convert", help="rewrite an older checkpoint (pickled objects) in the safe format; "
-                          "this unpickles IN, which can run code: only for a file you trust")  # fmt: skip
+    conv = sub.add_parser(
+        "convert",
+        help="rewrite an older checkpoint (pickled objects) in the safe format; "
+        "this unpickles IN, which can run code: only for a file you trust",
+    )
     conv.add_argument("src")
     conv.add_argument("dst")
     conv.add_argument("--trust", action="store_true", help="required: I trust SRC (it will be unpickled)")
@@ -262,17 +272,22 @@ def main(argv=None) -> int:
             print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
         elif args.cmd == "convert":
             if not args.trust:
-                print("error: convert unpickles SRC, which can run any code it holds; give --trust if you "
-                      "trust the file", file=sys.stderr)  # fmt: skip
+                print(
+                    "error: convert unpickles SRC, which can run any code it holds; give --trust if you "
+                    "trust the file",
+                    file=sys.stderr,
+                )
                 return 2
             out = convert_trusted(args.src, args.dst)
             print(f"wrote {out}: it loads without unpickling")
         else:
             data = read_checkpoint(args.path)
             cfg = data["config"]
-            print(f"{data['path']}: iteration {data['iter']}, task {cfg.get('task')}, policy "
-                  f"{cfg.get('policy', {}).get('name')}, {'policy checkpoint' if is_policy_only(data) else 'full'}, "
-                  f"curriculum {data.get('env_state', {}).get('curriculum')}")  # fmt: skip
+            print(
+                f"{data['path']}: iteration {data['iter']}, task {cfg.get('task')}, policy "
+                f"{cfg.get('policy', {}).get('name')}, {'policy checkpoint' if is_policy_only(data) else 'full'}, "
+                f"curriculum {data.get('env_state', {}).get('curriculum')}"
+            )
     except (CheckpointError, FloatingPointError, OSError) as err:  # OSError: a full disk, a bad path
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -40,10 +40,16 @@ class Ranks:
 def ranks_from_env() -> Ranks:
     """The job's ranks from torchrun's environment variables, checked."""
     try:
-        ranks = Ranks(int(os.getenv("WORLD_SIZE", "1")), int(os.getenv("RANK", "0")), int(os.getenv("LOCAL_RANK", "0")))
+        ranks = Ranks(
+            int(os.getenv("WORLD_SIZE", "1")), int(os.getenv("RANK", "0")), int(os.getenv("LOCAL_RANK", "0"))
+        )
     except ValueError as err:
         raise ValueError(f"WORLD_SIZE, RANK and LOCAL_RANK must be integers: {err}") from None
-    if ranks.world_size < 1 or not 0 <= ranks.rank < ranks.world_size or not 0 <= ranks.local_rank < ranks.world_size:
+    if (
+        ranks.world_size < 1
+        or not 0 <= ranks.rank < ranks.world_size
+        or not 0 <= ranks.local_rank < ranks.world_size
+    ):
         raise ValueError(f"inconsistent torchrun ranks: {ranks}")
     return ranks
 
@@ -53,7 +59,9 @@ def rank_device(device: str, ranks: Ranks) -> str:
     if not ranks.distributed or not device.startswith("cuda"):
         return device
     if device not in ("cuda", f"cuda:{ranks.local_rank}"):
-        raise ValueError(f"device={device} in a torchrun job: give device=cuda (each rank uses cuda:LOCAL_RANK)")
+        raise ValueError(
+            f"device={device} in a torchrun job: give device=cuda (each rank uses cuda:LOCAL_RANK)"
+        )
     return f"cuda:{ranks.local_rank}"
 
 

@@ -207,7 +207,9 @@ class PPOROA(PPO):
     def _in_precision(self, fn, *args):
         """fn(*args) under the bfloat16 autocast of rsl_rl's PPO update when `use_mixed_precision`."""
         device_type = torch.device(self.device).type
-        with torch.amp.autocast(device_type=device_type, enabled=self.use_mixed_precision, dtype=torch.bfloat16):
+        with torch.amp.autocast(
+            device_type=device_type, enabled=self.use_mixed_precision, dtype=torch.bfloat16
+        ):
             return fn(*args)
 
     def update_roa(self) -> dict[str, float]:
@@ -221,11 +223,17 @@ class PPOROA(PPO):
             self.optimizer.zero_grad()
             self.estimator_optimizer.zero_grad()
             total.backward()
-            if self.is_multi_gpu:  # data-parallel: every rank steps the same, averaged gradients (as PPO's pass)
-                reduce_gradients_in_buckets(self.actor.parameters(), self.gpu_world_size, self.grad_reduce_bucket_mb)
+            if (
+                self.is_multi_gpu
+            ):  # data-parallel: every rank steps the same, averaged gradients (as PPO's pass)
+                reduce_gradients_in_buckets(
+                    self.actor.parameters(), self.gpu_world_size, self.grad_reduce_bucket_mb
+                )
             nn.utils.clip_grad_norm_(self._estimator_params, self.max_grad_norm)
             self.estimator_optimizer.step()
-            for p in self._estimator_params:  # PPO's optimizer steps only what the λ term reaches: the encoder
+            for (
+                p
+            ) in self._estimator_params:  # PPO's optimizer steps only what the λ term reaches: the encoder
                 p.grad = None
             self.optimizer.step()
             logged = {f"roa_{k}": v.detach() for k, v in losses.items()}

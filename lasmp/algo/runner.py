@@ -48,8 +48,10 @@ class TrainingInterrupted(Exception):
     def __init__(self, signum: int, iteration: int, checkpoint: str | None):
         self.signum, self.iteration, self.checkpoint = signum, iteration, checkpoint
         name = signal.Signals(signum).name
-        super().__init__(f"{name} received: stopped after iteration {iteration}"
-                         + (f", saved {checkpoint}" if checkpoint else " (no log_dir: nothing saved)"))  # fmt: skip
+        super().__init__(
+            f"{name} received: stopped after iteration {iteration}"
+            + (f", saved {checkpoint}" if checkpoint else " (no log_dir: nothing saved)")
+        )
 
 
 class TrainingFaulted(RuntimeError):
@@ -61,22 +63,37 @@ class OneLineLogger(Logger):
 
     step_done = None  # callback() after each env-step of a rollout (the runner's fault check)
     iteration_done = None  # callback(it) after each iteration's log (the runner's interruption check)
-    iteration_faults: int | None = None  # this iteration's env-steps whose physics faulted (the runner sets it)
+    iteration_faults: int | None = (
+        None  # this iteration's env-steps whose physics faulted (the runner sets it)
+    )
 
     def process_env_step(self, rewards, dones, extras, intrinsic_rewards=None) -> None:
         super().process_env_step(rewards, dones, extras, intrinsic_rewards)
         if self.step_done is not None:
             self.step_done()
 
-    def log(self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std, rnd_weight,
-            **kwargs) -> None:  # fmt: skip
+    def log(
+        self,
+        it,
+        start_it,
+        total_it,
+        collect_time,
+        learn_time,
+        loss_dict,
+        learning_rate,
+        action_std,
+        rnd_weight,
+        **kwargs,
+    ) -> None:
         try:
             self._log(it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std)
         finally:
             if self.iteration_done is not None:
                 self.iteration_done(it)
 
-    def _log(self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std) -> None:
+    def _log(
+        self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std
+    ) -> None:
         if self.writer is None:
             return
         steps = self.cfg["num_steps_per_env"] * self.num_envs * self.gpu_world_size  # all ranks' env-steps
@@ -123,17 +140,28 @@ class LasmpRunner(OnPolicyRunner):
     checkpoint on SIGINT / SIGTERM."""
 
     def __init__(
-        self, env, train_cfg: dict, log_dir: str | None, device: str = "cpu", full_config: dict | None = None,
+        self,
+        env,
+        train_cfg: dict,
+        log_dir: str | None,
+        device: str = "cpu",
+        full_config: dict | None = None,
         max_fault_fraction: float = 0.5,
-    ):  # fmt: skip
+    ):
         super().__init__(env, train_cfg, log_dir=log_dir, device=device)
         self.full_config = full_config or {}
         self.max_fault_fraction = max_fault_fraction
         self._faults_before = 0  # env.fault_count when the iteration under way began
         self.logger = OneLineLogger(
-            log_dir=log_dir, cfg=self.cfg, env_cfg=env.cfg, num_envs=env.num_envs, is_distributed=self.is_distributed,
-            gpu_world_size=self.gpu_world_size, gpu_global_rank=self.gpu_global_rank, device=self.device,
-        )  # fmt: skip
+            log_dir=log_dir,
+            cfg=self.cfg,
+            env_cfg=env.cfg,
+            num_envs=env.num_envs,
+            is_distributed=self.is_distributed,
+            gpu_world_size=self.gpu_world_size,
+            gpu_global_rank=self.gpu_global_rank,
+            device=self.device,
+        )
         self._final_iteration = -1  # the last iteration of the current learn()
         self._other_ranks: list | None = None  # rank 0: the other ranks' running state for the next save
         self.logger.step_done = self._check_faults
@@ -144,12 +172,17 @@ class LasmpRunner(OnPolicyRunner):
     def _configure_multi_gpu(self) -> None:
         """rsl_rl's multi-GPU setup without its NCCL-and-CUDA assumption: gloo on a CPU, NCCL on CUDA."""
         ranks = dp.ranks_from_env()
-        self.gpu_world_size, self.gpu_global_rank, self.gpu_local_rank = ranks.world_size, ranks.rank, ranks.local_rank
+        self.gpu_world_size, self.gpu_global_rank, self.gpu_local_rank = (
+            ranks.world_size,
+            ranks.rank,
+            ranks.local_rank,
+        )
         self.is_distributed = ranks.distributed
         self.cfg["multi_gpu"] = (
             {"global_rank": ranks.rank, "local_rank": ranks.local_rank, "world_size": ranks.world_size}
-            if ranks.distributed else None
-        )  # fmt: skip
+            if ranks.distributed
+            else None
+        )
         if ranks.distributed:
             self.device = dp.rank_device(self.device, ranks)
             dp.setup(ranks, self.device)
@@ -160,7 +193,9 @@ class LasmpRunner(OnPolicyRunner):
         if hasattr(getattr(self.env, "curriculum", None), "sync"):
             self.env.curriculum.sync()
         self._signal = dp.any_rank(self._signal or 0, self.device) or None
-        saving = self._signal is not None or it == self._final_iteration or it % self.cfg["save_interval"] == 0
+        saving = (
+            self._signal is not None or it == self._final_iteration or it % self.cfg["save_interval"] == 0
+        )
         if saving:
             mine = {"run": self.env.state_dict()["run"], "rng_state": rng_state(self.env.rng)}
             gathered = dp.gather_to_main(mine)
@@ -181,8 +216,12 @@ class LasmpRunner(OnPolicyRunner):
         if self.gpu_global_rank == 0:
             return data
         mine = others[self.gpu_global_rank - 1]
-        return {**data, "env_state": {**data["env_state"], "run": mine["run"]}, "rng_state": mine["rng_state"],
-                "episode_log_state": None}  # fmt: skip
+        return {
+            **data,
+            "env_state": {**data["env_state"], "run": mine["run"]},
+            "rng_state": mine["rng_state"],
+            "episode_log_state": None,
+        }
 
     # -- fault guard ------------------------------------------------------------------------------
     def _check_faults(self) -> None:
@@ -212,12 +251,19 @@ class LasmpRunner(OnPolicyRunner):
         if self._signal is not None and time.monotonic() - self._signal_time_s < self.REPEAT_WINDOW_S:
             return
         if self._signal is not None:  # a second signal: stop now, without a checkpoint
-            print(f"\n{signal.Signals(signum).name} again: stopped at once, without a checkpoint (the last "
-                  "saved one is intact)", file=sys.stderr, flush=True)  # fmt: skip
+            print(
+                f"\n{signal.Signals(signum).name} again: stopped at once, without a checkpoint (the last "
+                "saved one is intact)",
+                file=sys.stderr,
+                flush=True,
+            )
             raise SystemExit(128 + signum)
         self._signal, self._signal_time_s = signum, time.monotonic()
-        print(f"\n{signal.Signals(signum).name}: finishing this iteration, then saving a checkpoint "
-              "(send it again to abort at once)", flush=True)  # fmt: skip
+        print(
+            f"\n{signal.Signals(signum).name}: finishing this iteration, then saving a checkpoint "
+            "(send it again to abort at once)",
+            flush=True,
+        )
 
     def _after_iteration(self, it: int) -> None:
         self._faults_before = getattr(self.env, "fault_count", 0)  # the next rollout's faults count from here
@@ -271,8 +317,12 @@ class LasmpRunner(OnPolicyRunner):
         """The logger's running episode sums and its windows of finished episodes: without them the
         first rewards logged after a resume would count only the steps since the resume."""
         log = self.logger
-        return {"reward_sum": log.cur_reward_sum.cpu(), "length": log.cur_episode_length.cpu(),
-                "rewards": list(log.rewbuffer), "lengths": list(log.lenbuffer)}  # fmt: skip
+        return {
+            "reward_sum": log.cur_reward_sum.cpu(),
+            "length": log.cur_episode_length.cpu(),
+            "rewards": list(log.rewbuffer),
+            "lengths": list(log.lenbuffer),
+        }
 
     def _load_episode_log_state(self, saved: dict) -> None:
         log = self.logger
@@ -282,7 +332,11 @@ class LasmpRunner(OnPolicyRunner):
         log.lenbuffer.extend(saved["lengths"])
 
     def load(
-        self, path: str | dict, load_cfg: dict | None = None, strict: bool = True, map_location: str | None = None
+        self,
+        path: str | dict,
+        load_cfg: dict | None = None,
+        strict: bool = True,
+        map_location: str | None = None,
     ):
         """Load a checkpoint: a path, or a `read_checkpoint` result (a tool reads its file once)."""
         data = path if isinstance(path, dict) else read_checkpoint(path, map_location or self.device)

@@ -35,6 +35,19 @@ from lasmp.plainstate import PlainStateError, pack, unpack
 
 
 class BaseEnv(VecEnv):
+    cfg_class: type[BaseEnvCfg] = BaseEnvCfg  # the task's env config schema
+
+    @classmethod
+    def check_cfg(cls, cfg) -> None:
+        """Refuse anything but the task's config dataclass: an env takes a config validated once, where
+        it was built (`lasmp.config.build_env_cfg`, `lasmp.train_cfg.to_train_cfg`), never a dict."""
+        if not isinstance(cfg, cls.cfg_class):
+            name = cls.cfg_class.__name__
+            raise TypeError(
+                f"{cls.__name__} takes a validated {name}, got a {type(cfg).__name__}: build one with "
+                f"lasmp.config.build_env_cfg(overrides, schema={name})"
+            )
+
     def __init__(self, cfg: BaseEnvCfg, model, num_actions: int, max_episode_length: int, device="cpu"):
         self.cfg = cfg
         self.sim = make_backend(cfg.backend, model, cfg.num_envs, cfg.sim, device)
@@ -79,8 +92,13 @@ class BaseEnv(VecEnv):
         d = self._task_state()
         if run:
             names = self.RUN_STATE + self.TASK_STATE
-            d["run"] = {"format": self.RUN_STATE_FORMAT, "backend": self.cfg.backend, "num_envs": self.num_envs,
-                        "sim": pack(self.sim.get_state()), "attrs": pack({k: getattr(self, k) for k in names})}  # fmt: skip
+            d["run"] = {
+                "format": self.RUN_STATE_FORMAT,
+                "backend": self.cfg.backend,
+                "num_envs": self.num_envs,
+                "sim": pack(self.sim.get_state()),
+                "attrs": pack({k: getattr(self, k) for k in names}),
+            }
         return d
 
     def load_state_dict(self, d: dict, run: bool = True) -> bool:
@@ -91,18 +109,26 @@ class BaseEnv(VecEnv):
         saved = d.get("run")
         if run and saved is not None:
             if saved["num_envs"] != self.num_envs:
-                raise ValueError(f"saved running state is for {saved['num_envs']} envs, this env has {self.num_envs}")
+                raise ValueError(
+                    f"saved running state is for {saved['num_envs']} envs, this env has {self.num_envs}"
+                )
             made_by = (saved.get("format", 1), saved.get("backend", "cpu"))
             if made_by != (self.RUN_STATE_FORMAT, self.cfg.backend):
-                warnings.warn(f"the checkpoint's running state was saved by another env (format {made_by[0]}, "
-                              f"backend {made_by[1]}; this one: {self.RUN_STATE_FORMAT}, {self.cfg.backend}): "
-                              "it is not restored, every env starts a new episode (the resume is not exact)",
-                              stacklevel=2)  # fmt: skip
+                warnings.warn(
+                    f"the checkpoint's running state was saved by another env (format {made_by[0]}, "
+                    f"backend {made_by[1]}; this one: {self.RUN_STATE_FORMAT}, {self.cfg.backend}): "
+                    "it is not restored, every env starts a new episode (the resume is not exact)",
+                    stacklevel=2,
+                )
                 return False
             live = {k: getattr(self, k) for k in self.RUN_STATE + self.TASK_STATE}
             if set(saved["attrs"]) != set(live):
-                raise PlainStateError(f"saved running state holds {sorted(saved['attrs'])}, this env {sorted(live)}")
-            attrs = unpack(saved["attrs"], live, self.device, "running state", self.RUN_STATE_CLASSES)  # checked before any change
+                raise PlainStateError(
+                    f"saved running state holds {sorted(saved['attrs'])}, this env {sorted(live)}"
+                )
+            attrs = unpack(
+                saved["attrs"], live, self.device, "running state", self.RUN_STATE_CLASSES
+            )  # checked before any change
             self.sim.set_state(unpack(saved["sim"], name="physics state"))
             for key, value in attrs.items():
                 setattr(self, key, value)

@@ -153,5 +153,7 @@ class SharedCurriculum(WaypointCurriculum):
         dist.all_gather_object(everyone, mine)
         rose = False
         for levels, success in everyone:
-            rose |= WaypointCurriculum.update(self, np.asarray(levels, dtype=np.int64), np.asarray(success, dtype=bool))
+            rose |= WaypointCurriculum.update(
+                self, np.asarray(levels, dtype=np.int64), np.asarray(success, dtype=bool)
+            )
         return rose

@@ -3,7 +3,9 @@
 - where its state lives: `RobotIndex` (addresses in qpos, qvel, ctrl, sensordata, site_xpos);
 - what it reads: `read_robot` -> `RobotReadout` (trunk pose and velocities, IMU, joints, feet);
 - what it is: `RobotIntrinsics` (the randomized trunk mass, CoM shift, foot friction, PD gains),
-  written into the batch's per-env model by `RobotIntrinsicsWriter`;
+  written into the batch's per-env model by `RobotIntrinsicsWriter`; `Intrinsics`, the per-env
+  draw of the paper's Table B (`nominal_intrinsics`, `sample_intrinsics`) that both tasks make;
+- how its feet step: `step_gait_phase` (touchdown, lift-off, the air and contact phases that end);
 - what the policy sees of it: `proprioception`, o_t (`OBS_DIM` numbers, sensors only);
 - which envs diverged: `screen_faults`, so that NaNs stay out of rewards, logs and observations.
 
@@ -28,6 +30,7 @@ import mujoco
 import numpy as np
 import torch
 
+from lasmp.config import DomainRandRanges
 from lasmp.envs.rotations import euler_zyx_from_mat, quat_to_mat, rotate_inv
 from lasmp.robots import a1
 
@@ -207,6 +210,45 @@ class RobotIntrinsics:
         )
 
 
+@dataclass
+class Intrinsics(RobotIntrinsics):
+    """One draw of Table B per env: the robot's parameters and the platform's per-axis PD gain factors
+    (unitless), which only the moving-platform task writes into its model; the R-S baseline draws and
+    carries them too (its random stream and its checkpoints hold them)."""
+
+    platform_kp_factor: np.ndarray  # (n, 6) per platform axis, PLATFORM_JOINTS order
+    platform_kd_factor: np.ndarray  # (n, 6)
+
+
+def nominal_intrinsics(n: int, kd_factor_ref: float) -> Intrinsics:
+    return Intrinsics(
+        trunk_mass_kg=np.full(n, a1.TRUNK_MASS_KG),
+        com_shift_m=np.zeros((n, 3)),
+        foot_friction=np.ones(n),
+        joint_kp=np.full((n, 12), a1.KP_NOMINAL_NM_PER_RAD),
+        joint_kd=np.full((n, 12), a1.KD_NOMINAL_NM_S_PER_RAD),
+        platform_kp_factor=np.ones((n, 6)),
+        platform_kd_factor=np.full((n, 6), kd_factor_ref),
+    )
+
+
+def sample_intrinsics(n: int, r: DomainRandRanges, rng: np.random.Generator) -> Intrinsics:
+    """n uniform draws from the ranges `r`, on the host (in field order: the random stream's order)."""
+
+    def u(lo_hi, *shape):
+        return rng.uniform(lo_hi[0], lo_hi[1], size=(n, *shape))
+
+    return Intrinsics(
+        trunk_mass_kg=u(r.trunk_mass_kg),
+        com_shift_m=u(r.com_shift_m, 3),
+        foot_friction=u(r.foot_friction),
+        joint_kp=u(r.joint_kp, 12),
+        joint_kd=u(r.joint_kd, 12),
+        platform_kp_factor=u(r.platform_kp_factor, 6),
+        platform_kd_factor=u(r.platform_kd_factor, 6),
+    )
+
+
 class RobotIntrinsicsWriter:
     """Writes the `RobotIntrinsics` of some envs (host arrays, drawn at reset) into the backend's
     per-env model fields (a task with actuators of its own extends it)."""
@@ -240,3 +282,42 @@ class RobotIntrinsicsWriter:
         self._gainprm[rows, self._joint_act, 0] = kp
         self._biasprm[rows, self._joint_act, 1] = -kp
         self._biasprm[rows, self._joint_act, 2] = -kd
+
+
+@dataclass
+class GaitEvents:
+    """A step's gait-phase events per foot, (n, 4) tensors."""
+
+    touchdown: torch.Tensor  # bool, the foot made contact this step (it was in the air)
+    liftoff: torch.Tensor  # bool, the foot left contact this step (it was in contact)
+    t_air_s: torch.Tensor  # length of the air phase that ended at touchdown (0 elsewhere), s
+    t_contact_s: torch.Tensor | None  # length of the contact phase that ended at lift-off (0 elsewhere), s
+
+
+def step_gait_phase(
+    contact: torch.Tensor,
+    contact_prev: torch.Tensor,
+    t_air_s: torch.Tensor,
+    t_contact_s: torch.Tensor | None,
+    dt_s: float,
+) -> GaitEvents:
+    """This step's events from the feet's `contact` (n, 4) bool; updates, in place, the task's
+    running buffers: `contact_prev` (n, 4) bool, the time each foot has been in the air `t_air_s`
+    and in contact `t_contact_s` (n, 4), s (None: a task that does not track contact phases).
+
+    `contact_prev` takes a copy of `contact`, never becomes it: the readout that `contact` belongs to
+    is updated in place where envs are reset (their rows read anew), and a reset sets the buffer's
+    rows to False, which must not reach the readout either.
+    """
+    touchdown = contact & ~contact_prev
+    liftoff = ~contact & contact_prev
+    t_air_s += dt_s * (~contact).to(t_air_s.dtype)
+    t_air_ended = torch.where(touchdown, t_air_s, 0.0)
+    t_air_s.masked_fill_(contact, 0.0)
+    t_contact_ended = None
+    if t_contact_s is not None:
+        t_contact_s += dt_s * contact.to(t_contact_s.dtype)
+        t_contact_ended = torch.where(liftoff, t_contact_s, 0.0)
+        t_contact_s.masked_fill_(~contact, 0.0)
+    contact_prev.copy_(contact)
+    return GaitEvents(touchdown, liftoff, t_air_ended, t_contact_ended)

@@ -13,10 +13,16 @@ def quat_to_mat(q: torch.Tensor) -> torch.Tensor:
     """(n, 4) unit quaternions -> (n, 3, 3) rotation matrices."""
     w, x, y, z = q.unbind(-1)
     rows = (
-        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-    )  # fmt: skip
+        1 - 2 * (y * y + z * z),
+        2 * (x * y - w * z),
+        2 * (x * z + w * y),
+        2 * (x * y + w * z),
+        1 - 2 * (x * x + z * z),
+        2 * (y * z - w * x),
+        2 * (x * z - w * y),
+        2 * (y * z + w * x),
+        1 - 2 * (x * x + y * y),
+    )
     return torch.stack(rows, dim=-1).reshape(q.shape[:-1] + (3, 3))
 
 
@@ -26,10 +32,16 @@ def mat_from_euler_zyx(roll: torch.Tensor, pitch: torch.Tensor, yaw: torch.Tenso
     cp, sp = torch.cos(pitch), torch.sin(pitch)
     cy, sy = torch.cos(yaw), torch.sin(yaw)
     rows = (
-        cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr,
-        sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr,
-        -sp, cp * sr, cp * cr,
-    )  # fmt: skip
+        cy * cp,
+        cy * sp * sr - sy * cr,
+        cy * sp * cr + sy * sr,
+        sy * cp,
+        sy * sp * sr + cy * cr,
+        sy * sp * cr - cy * sr,
+        -sp,
+        cp * sr,
+        cp * cr,
+    )
     return torch.stack(rows, dim=-1).reshape(roll.shape + (3, 3))
 
 

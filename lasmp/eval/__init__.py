@@ -1,1 +1,1 @@
-"""Evaluation (SPEC §12): the fixed benchmark set Xi_eval (:mod:`lasmp.eval.benchmark`)."""
+"""Evaluation (docs/method.md, Evaluation): the fixed benchmark set Xi_eval (:mod:`lasmp.eval.benchmark`)."""

@@ -1,4 +1,4 @@
-"""The evaluation set Xi_eval (SPEC §12): fixed trajectories and fixed robots, one file.
+"""The evaluation set Xi_eval (docs/method.md, Evaluation): fixed trajectories and fixed robots, one file.
 
 Definition
     * ``trajectories``: M (default 10,000) platform trajectories drawn by
@@ -6,7 +6,7 @@ Definition
       (``ranges_for_split("test")``: N uniform in 4..16, T = 10 s), from
       ``np.random.default_rng([seed, 0])``.
     * ``robots``: R (default 1,024) intrinsic-parameter draws
-      (:func:`lasmp.envs.moving_platform.domain_rand.sample_intrinsics`) from the *testing* ranges
+      (:func:`lasmp.envs.robot.sample_intrinsics`) from the *testing* ranges
       of Table B (``DomainRandCfg().test``: trunk mass, CoM shift, foot friction, joint Kp/Kd and
       the platform PD gain factors), from ``np.random.default_rng([seed, 1])``.
       The two streams are independent: changing M does not change the robots. Changing M does
@@ -53,7 +53,7 @@ import numpy as np
 from lasmp.atomic import atomic_open
 from lasmp.config import DomainRandCfg
 from lasmp.envs import trajectories as T
-from lasmp.envs.moving_platform.domain_rand import Intrinsics, sample_intrinsics
+from lasmp.envs.robot import Intrinsics, sample_intrinsics
 
 FORMAT_NAME = "lasmp-benchmark"
 FORMAT_VERSION = 2  # 2: approximating B-splines, the construction recorded (spline, spline_degree)
@@ -176,8 +176,13 @@ def load(path) -> Benchmark:
     fmt = get("format")
     if fmt.shape != () or fmt.dtype.kind != "U" or str(fmt) != FORMAT_NAME:
         raise BenchmarkFileError(f"{path}: format is {fmt!r}, expected {FORMAT_NAME!r}")
-    T.check_version(get, path, FORMAT_VERSION, BenchmarkFileError,
-                    "Regenerate it with `python -m lasmp.eval.benchmark generate`.")  # fmt: skip
+    T.check_version(
+        get,
+        path,
+        FORMAT_VERSION,
+        BenchmarkFileError,
+        "Regenerate it with `python -m lasmp.eval.benchmark generate`.",
+    )
     seed = get("seed")
     if seed.shape != () or seed.dtype.kind not in "iu":
         raise BenchmarkFileError(f"{path}: 'seed' must be an integer scalar, got {seed.dtype} {seed.shape}")

@@ -45,7 +45,9 @@ def bins(values: np.ndarray, edges, fmt: str) -> list[tuple[str, np.ndarray]]:
 def primary_cause(cause: str) -> str:
     """The kind of the first thing that touched: trunk, hip, thigh, calf, or the fall / fault."""
     first = cause.split("+")[0]
-    return first.split("_", 1)[1] if first.count("_") == 1 and first[:2] in ("FR", "FL", "RR", "RL") else first
+    return (
+        first.split("_", 1)[1] if first.count("_") == 1 and first[:2] in ("FR", "FL", "RR", "RL") else first
+    )
 
 
 def breakdown(t: dict[str, np.ndarray], late_s: float = 8.0) -> dict:
@@ -81,31 +83,58 @@ def _share(k: int, n: int) -> str:
 
 
 def markdown(b: dict) -> str:
-    lines = [f"{b['episodes']} episodes, {b['collisions']} collisions (rate {_share(b['collisions'], b['episodes'])})."]
+    lines = [
+        f"{b['episodes']} episodes, {b['collisions']} collisions (rate {_share(b['collisions'], b['episodes'])})."
+    ]
 
     def table(title: str, head: str, rows):
-        lines.extend(["", f"## {title}", "", f"| {head} | episodes | collisions | collision rate |", "|---|---|---|---|"])
+        lines.extend(
+            [
+                "",
+                f"## {title}",
+                "",
+                f"| {head} | episodes | collisions | collision rate |",
+                "|---|---|---|---|",
+            ]
+        )
         lines.extend(f"| {label} | {n} | {c} | {_share(c, n)} |" for label, n, c in rows if n)
 
     table("By number of waypoints N", "N", b["by_n"])
     if "by_tilt" in b:
         table("By the platform's maximum tilt (rad)", "max tilt", b["by_tilt"])
     else:
-        lines += ["", "No platform-probe columns (evaluated with --no-platform-probe): no tilt or forced tables."]
+        lines += [
+            "",
+            "No platform-probe columns (evaluated with --no-platform-probe): no tilt or forced tables.",
+        ]
     table("By foot friction", "friction", b["by_friction"])
     if "by_forced" in b:
-        table("Forced by the world (the Coulomb block slides off or loses contact) or not", "world",
-              b["by_forced"])  # fmt: skip
+        table(
+            "Forced by the world (the Coulomb block slides off or loses contact) or not",
+            "world",
+            b["by_forced"],
+        )
         tail = b["tilt_tail"]
-        lines += ["", f"Tilt tail (max tilt >= {TAIL_TILT_RAD} rad): {tail['episodes']} episodes "
-                      f"({_share(tail['episodes'], b['episodes'])} of all), {tail['collisions']} collisions "
-                      f"({_share(tail['collisions'], b['collisions'])} of all collisions)."]  # fmt: skip
-    lines += ["", "## Failures by cause (the first body that touched, or the fall)", "",
-              "| cause | collisions | share |", "|---|---|---|"]  # fmt: skip
+        lines += [
+            "",
+            f"Tilt tail (max tilt >= {TAIL_TILT_RAD} rad): {tail['episodes']} episodes "
+            f"({_share(tail['episodes'], b['episodes'])} of all), {tail['collisions']} collisions "
+            f"({_share(tail['collisions'], b['collisions'])} of all collisions).",
+        ]
+    lines += [
+        "",
+        "## Failures by cause (the first body that touched, or the fall)",
+        "",
+        "| cause | collisions | share |",
+        "|---|---|---|",
+    ]
     lines += [f"| {k} | {c} | {_share(c, b['collisions'])} |" for k, c in b["by_cause"]]
     late = b["late"]
-    lines += ["", f"Failures after {late['after_s']:g} s: {late['collisions']} of {b['collisions']} "
-                  f"({_share(late['collisions'], b['collisions'])})."]  # fmt: skip
+    lines += [
+        "",
+        f"Failures after {late['after_s']:g} s: {late['collisions']} of {b['collisions']} "
+        f"({_share(late['collisions'], b['collisions'])}).",
+    ]
     return "\n".join(lines)
 
 
@@ -120,8 +149,11 @@ def plot(t: dict[str, np.ndarray], b: dict, path: Path) -> bool:
 
     from lasmp.atomic import atomic_write_with
 
-    panels = [("N (waypoints)", b["by_n"]), ("platform max tilt (rad)", b.get("by_tilt", [])),
-              ("foot friction", b["by_friction"])]  # fmt: skip
+    panels = [
+        ("N (waypoints)", b["by_n"]),
+        ("platform max tilt (rad)", b.get("by_tilt", [])),
+        ("foot friction", b["by_friction"]),
+    ]
     fig, axes = plt.subplots(1, 4, figsize=(17, 3.6))
     for ax, (title, rows) in zip(axes, panels, strict=False):
         rows = [r for r in rows if r[1]]
@@ -140,8 +172,11 @@ def plot(t: dict[str, np.ndarray], b: dict, path: Path) -> bool:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m lasmp.eval.breakdown", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p = argparse.ArgumentParser(
+        prog="python -m lasmp.eval.breakdown",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("dir", type=Path, help="an evaluation directory (evaluate.py --out), with episodes.csv")
     p.add_argument("--plot", type=Path, help="also draw the breakdown to this PNG")
     p.add_argument("--late-s", type=float, default=8.0, help="failures after this time count as late (s)")

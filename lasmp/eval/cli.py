@@ -1,4 +1,4 @@
-"""`python evaluate.py`: measure a controller on the benchmark (SPEC §12).
+"""`python evaluate.py`: measure a controller on the benchmark (docs/method.md, Evaluation).
 
     python evaluate.py --checkpoint PATH [--plot-estimates]      # a trained LAS-MP policy (deployment mode)
     python evaluate.py --controller stand_still                   # PD to q_nominal, a = 0
@@ -50,8 +50,13 @@ NUM_BATCHES = 10
 def eval_env_overrides(num_envs: int, seed: int, extra: dict | None = None) -> dict:
     """Evaluation: the benchmark decides trajectories and robots; no curriculum. `extra` (nested)
     is merged on top (the real-motion suite's episode length and platform drive)."""
-    base = {"num_envs": num_envs, "seed": seed, "curriculum": {"enabled": False},
-            "trajectory": {"split": "test"}, "domain_rand": {"split": "test"}}  # fmt: skip
+    base = {
+        "num_envs": num_envs,
+        "seed": seed,
+        "curriculum": {"enabled": False},
+        "trajectory": {"split": "test"},
+        "domain_rand": {"split": "test"},
+    }
     return deep_merge(base, extra or {})
 
 
@@ -80,21 +85,25 @@ def load_or_make_benchmark(path: Path):
 
 def build(args, extra_env: dict | None = None):
     """(env, controller, policy with estimators or None, method name); `extra_env`: env overrides."""
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
     n = min(args.batch_envs, args.num_trajectories)
     overrides = eval_env_overrides(n, args.seed, extra_env)
     if args.controller == "stand_still":
-        env = MovingPlatformEnv(overrides)
+        env = MovingPlatformEnv(build_env_cfg(overrides, schema=MovingPlatformCfg))
         zeros = torch.zeros(n, env.num_actions)
         return env, (lambda obs: zeros), None, "stand_still"
     deployed = load_policy(args.checkpoint, seed=args.seed)
     policy, cfg = deployed.policy, deployed.cfg
     if args.controller in ("rs", "rs_oracle"):
         if cfg.task != "rough_static" or not policy.command_input:
-            raise CheckpointError(f"--controller {args.controller} needs an R-S checkpoint (task=rough_static), "
-                                  f"got task={cfg.task}")  # fmt: skip
-        env = MovingPlatformEnv(overrides)
+            raise CheckpointError(
+                f"--controller {args.controller} needs an R-S checkpoint (task=rough_static), "
+                f"got task={cfg.task}"
+            )
+        env = MovingPlatformEnv(build_env_cfg(overrides, schema=MovingPlatformCfg))
         command = oracle_command if args.controller == "rs_oracle" else zero_command
 
         def rs_controller(obs):
@@ -107,7 +116,7 @@ def build(args, extra_env: dict | None = None):
         raise CheckpointError(
             f"--checkpoint without --controller needs a moving_platform policy, got {cfg.task}"
         )
-    env = MovingPlatformEnv(deep_merge(_asdict(cfg.env), overrides))
+    env = MovingPlatformEnv(build_env_cfg(deep_merge(_asdict(cfg.env), overrides), schema=MovingPlatformCfg))
     check_compatible(deployed.checkpoint, env)
     return env, (lambda obs: policy(obs)), policy, f"LAS-MP checkpoint {args.checkpoint} ({cfg.policy.name})"
 
@@ -146,31 +155,53 @@ def main(argv=None) -> int:
     p.add_argument(
         "--checkpoint", help="a checkpoint file or run directory (LAS-MP, or R-S for rs/rs_oracle)"
     )
-    p.add_argument("--controller", choices=["stand_still", "rs", "rs_oracle"],
-                   help="a baseline (default with --checkpoint: the checkpoint's own LAS-MP policy)")  # fmt: skip
+    p.add_argument(
+        "--controller",
+        choices=["stand_still", "rs", "rs_oracle"],
+        help="a baseline (default with --checkpoint: the checkpoint's own LAS-MP policy)",
+    )
     p.add_argument("--benchmark", type=Path, default=DEFAULT_BENCHMARK)
     p.add_argument("--trajectories", type=Path, help="a trajectory file to play instead of the benchmark's")
     p.add_argument("--num-trajectories", type=int, default=None, help="the first K episodes (default: all)")
     p.add_argument("--batch-envs", type=int, default=1024)
-    p.add_argument("--out", type=Path, default=None,
-                   help="default: eval/stand_still, or eval/<run directory>/<checkpoint stem>[_rs|_rs_oracle]")  # fmt: skip
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="default: eval/stand_still, or eval/<run directory>/<checkpoint stem>[_rs|_rs_oracle]",
+    )
     p.add_argument("--force", action="store_true", help="overwrite a result already in --out")
-    p.add_argument("--no-platform-probe", action="store_true",
-                   help="skip the platform probe: episodes.csv's feasibility columns stay empty")  # fmt: skip
+    p.add_argument(
+        "--no-platform-probe",
+        action="store_true",
+        help="skip the platform probe: episodes.csv's feasibility columns stay empty",
+    )
     p.add_argument(
         "--plot-estimates", action="store_true", help="estimated vs true x_exp over episode 0 (PNG)"
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--suite", choices=["real_motion"], help="play a scenario suite instead of the benchmark")
     p.add_argument("--scenarios", nargs="+", help="with --suite: only these scenarios (default: all)")
-    p.add_argument("--robots-per-scenario", type=int, default=None,
-                   help="with --suite: the benchmark's first R robots play every scenario (default 64)")  # fmt: skip
-    p.add_argument("--platform-drive", choices=["close", "paper"], default=None,
-                   help="with --suite: the platform follows the scenario closely (default) or through the "
-                        "paper's soft drive")  # fmt: skip
-    p.add_argument("--torch-threads", type=int, default=1,
-                   help="torch's CPU threads for the policy (default 1: its per-step networks are small, and more "
-                        "threads contend with the physics thread pool, on a shared machine badly)")  # fmt: skip
+    p.add_argument(
+        "--robots-per-scenario",
+        type=int,
+        default=None,
+        help="with --suite: the benchmark's first R robots play every scenario (default 64)",
+    )
+    p.add_argument(
+        "--platform-drive",
+        choices=["close", "paper"],
+        default=None,
+        help="with --suite: the platform follows the scenario closely (default) or through the "
+        "paper's soft drive",
+    )
+    p.add_argument(
+        "--torch-threads",
+        type=int,
+        default=1,
+        help="torch's CPU threads for the policy (default 1: its per-step networks are small, and more "
+        "threads contend with the physics thread pool, on a shared machine badly)",
+    )
     args = p.parse_args(argv)
     if args.torch_threads < 1:
         p.error(f"--torch-threads must be >= 1, got {args.torch_threads}")
@@ -183,8 +214,11 @@ def main(argv=None) -> int:
         p.error(f"--batch-envs must be >= 1, got {args.batch_envs}")
     if args.suite:
         return run_suite(args, p)
-    for flag, value in (("--scenarios", args.scenarios), ("--robots-per-scenario", args.robots_per_scenario),
-                        ("--platform-drive", args.platform_drive)):  # fmt: skip
+    for flag, value in (
+        ("--scenarios", args.scenarios),
+        ("--robots-per-scenario", args.robots_per_scenario),
+        ("--platform-drive", args.platform_drive),
+    ):
         if value is not None:
             p.error(f"{flag} needs --suite")
     if args.plot_estimates and args.controller is not None:
@@ -255,8 +289,10 @@ def prepare_out_dir(out_dir: Path, force: bool) -> Path:
     refuse one that already holds a metrics.json unless `force`."""
     existing = out_dir / "metrics.json"
     if existing.exists() and not force:
-        raise OutDirError(f"{existing} already exists (an earlier result): choose another --out, or pass --force "
-                          "to overwrite it")  # fmt: skip
+        raise OutDirError(
+            f"{existing} already exists (an earlier result): choose another --out, or pass --force "
+            "to overwrite it"
+        )
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=out_dir, prefix=".write-test-"):
@@ -272,9 +308,12 @@ def run_suite(args, p) -> int:
     """`--suite real_motion`: every scenario with the benchmark's first R robots (lasmp.eval.real_motion)."""
     from lasmp.eval.real_motion import suite as rm
 
-    for flag, value in (("--trajectories", args.trajectories), ("--num-trajectories", args.num_trajectories),
-                        ("--plot-estimates", args.plot_estimates or None),
-                        ("--no-platform-probe", args.no_platform_probe or None)):  # fmt: skip
+    for flag, value in (
+        ("--trajectories", args.trajectories),
+        ("--num-trajectories", args.num_trajectories),
+        ("--plot-estimates", args.plot_estimates or None),
+        ("--no-platform-probe", args.no_platform_probe or None),
+    ):
         if value is not None:
             p.error(f"{flag} does not apply to --suite")
     drive = args.platform_drive or rm.DEFAULT_DRIVE

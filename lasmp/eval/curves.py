@@ -142,7 +142,10 @@ def main(argv=None) -> int:
     if len(set(labels)) != len(labels):
         ap.error(f"the runs need distinct labels, got {labels}")
     try:
-        runs = {name: truncated(read_scalars(d), args.last_iteration) for name, d in zip(labels, args.run_dirs, strict=True)}
+        runs = {
+            name: truncated(read_scalars(d), args.last_iteration)
+            for name, d in zip(labels, args.run_dirs, strict=True)
+        }
     except FileNotFoundError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -154,10 +157,22 @@ def main(argv=None) -> int:
         print(f"wrote {args.out}", file=sys.stderr)
     if args.json:
         if len(runs) == 1:
-            print(json.dumps({"run_dir": str(args.run_dirs[0]), "windows": windows(runs[labels[0]], args.every)}))
+            print(
+                json.dumps(
+                    {"run_dir": str(args.run_dirs[0]), "windows": windows(runs[labels[0]], args.every)}
+                )
+            )
         else:
-            print(json.dumps({"runs": [{"label": name, "run_dir": str(d), "windows": windows(runs[name], args.every)}
-                                       for name, d in zip(labels, args.run_dirs, strict=True)]}))  # fmt: skip
+            print(
+                json.dumps(
+                    {
+                        "runs": [
+                            {"label": name, "run_dir": str(d), "windows": windows(runs[name], args.every)}
+                            for name, d in zip(labels, args.run_dirs, strict=True)
+                        ]
+                    }
+                )
+            )
     return 0
 
 

@@ -39,7 +39,7 @@ import numpy as np
 import torch
 
 from lasmp.atomic import atomic_open
-from lasmp.envs.scene import PLATFORM_JOINTS
+from lasmp.envs.moving_platform.scene import PLATFORM_JOINTS
 from lasmp.eval.metrics import EXTRA_METRICS, METRICS
 from lasmp.eval.run import BenchmarkSource
 
@@ -48,15 +48,35 @@ SLIDE_LIMIT_M = 1.0  # block offset from the centre that counts as forced: the 2
 BLOCK_SUBSTEPS = 4  # block integration steps per policy step (5 ms at the policy's 20 ms)
 
 AXES = tuple(j.removeprefix("plf_") for j in PLATFORM_JOINTS)  # x, y, z, yaw, pitch, roll
-PROBE_COLUMNS = ("platform_tilt_max_rad", "platform_acc_max_mps2", "block_offset_max_m", "block_contact_lost",
-                 "forced", "forced_time_s")  # fmt: skip
+PROBE_COLUMNS = (
+    "platform_tilt_max_rad",
+    "platform_acc_max_mps2",
+    "block_offset_max_m",
+    "block_contact_lost",
+    "forced",
+    "forced_time_s",
+)
 PER_EPISODE_METRICS = tuple(m for m in METRICS + EXTRA_METRICS if m != "collision_rate")
 COLUMNS = (
-    "episode", "n_waypoints", "robot", "trunk_mass_kg", "com_shift_x_m", "com_shift_y_m", "com_shift_z_m",
-    "foot_friction", "joint_kp_mean", "joint_kd_mean",
-    *(f"platform_kp_factor_{a}" for a in AXES), *(f"platform_kd_factor_{a}" for a in AXES),
-    "collided", "collision_time_s", "collision_cause", "steps", *PER_EPISODE_METRICS, *PROBE_COLUMNS,
-)  # fmt: skip
+    "episode",
+    "n_waypoints",
+    "robot",
+    "trunk_mass_kg",
+    "com_shift_x_m",
+    "com_shift_y_m",
+    "com_shift_z_m",
+    "foot_friction",
+    "joint_kp_mean",
+    "joint_kd_mean",
+    *(f"platform_kp_factor_{a}" for a in AXES),
+    *(f"platform_kd_factor_{a}" for a in AXES),
+    "collided",
+    "collision_time_s",
+    "collision_cause",
+    "steps",
+    *PER_EPISODE_METRICS,
+    *PROBE_COLUMNS,
+)
 TEXT_COLUMNS = ("collision_cause",)
 
 
@@ -67,8 +87,9 @@ class EpisodesFileError(ValueError):
 # -- the block ---------------------------------------------------------------------------------
 
 
-def apparent_gravity_p(dt_s: float, r_wp: np.ndarray, v_plf_w: np.ndarray, omega_plf_w: np.ndarray,
-                       top_m: float) -> np.ndarray:  # fmt: skip
+def apparent_gravity_p(
+    dt_s: float, r_wp: np.ndarray, v_plf_w: np.ndarray, omega_plf_w: np.ndarray, top_m: float
+) -> np.ndarray:
     """(T, m, 3) apparent gravity g - a_s at the top surface's centre s, in the platform frame, m/s^2,
     from a motion sampled every dt_s: r_wp (T, m, 3, 3), v_plf_w and omega_plf_w (T, m, 3) of the
     platform's centre (its CoM)."""
@@ -86,8 +107,13 @@ class BlockResult:
     forced_time_s: np.ndarray  # (m,) when it first was (NaN where never)
 
 
-def slide_block(g_app_p: np.ndarray, dt_s: float, mu: np.ndarray, limit_m: float = SLIDE_LIMIT_M,
-                substeps: int = BLOCK_SUBSTEPS) -> BlockResult:  # fmt: skip
+def slide_block(
+    g_app_p: np.ndarray,
+    dt_s: float,
+    mu: np.ndarray,
+    limit_m: float = SLIDE_LIMIT_M,
+    substeps: int = BLOCK_SUBSTEPS,
+) -> BlockResult:
     """A Coulomb block (per unit mass) from rest at the centre under g_app_p (T, m, 3) sampled every
     dt_s (linear in between); friction coefficient mu (m,).
 
@@ -162,7 +188,9 @@ def _full_length_env_class():
     return _FullLengthEnv
 
 
-def probe_platform(env_cfg, bench, num_episodes: int, num_envs: int, progress: bool = True) -> dict[str, np.ndarray]:
+def probe_platform(
+    env_cfg, bench, num_episodes: int, num_envs: int, progress: bool = True
+) -> dict[str, np.ndarray]:
     """The probe columns of benchmark episodes 0..num_episodes-1 (module docstring), in the world of
     `env_cfg` (a MovingPlatformCfg: the evaluation env's; its num_envs is replaced). An episode cut
     short by a fault has its probe columns NaN."""
@@ -175,8 +203,11 @@ def probe_platform(env_cfg, bench, num_episodes: int, num_envs: int, progress: b
     source = BenchmarkSource(bench, num_episodes, n)
     env.episode_source = source
     out = {k: np.full(num_episodes, np.nan) for k in PROBE_COLUMNS}
-    buf = {"r_wp": np.zeros((horizon + 1, n, 3, 3)), "v": np.zeros((horizon + 1, n, 3)),
-           "omega": np.zeros((horizon + 1, n, 3))}  # fmt: skip
+    buf = {
+        "r_wp": np.zeros((horizon + 1, n, 3, 3)),
+        "v": np.zeros((horizon + 1, n, 3)),
+        "omega": np.zeros((horizon + 1, n, 3)),
+    }
     length = np.zeros(n, dtype=int)  # samples recorded of each env's episode
 
     def record(readout, rows=None):
@@ -204,8 +235,9 @@ def probe_platform(env_cfg, bench, num_episodes: int, num_envs: int, progress: b
             whole = ended[extras["time_outs"].cpu().numpy()[ended]]  # the others faulted: no probe
             if len(whole):
                 mu = bench.robots.foot_friction[bench.pairing(ep[whole])[1]]
-                stats = motion_stats(dt, buf["r_wp"][:, whole], buf["v"][:, whole], buf["omega"][:, whole], mu,
-                                     env.plf_top_m)  # fmt: skip
+                stats = motion_stats(
+                    dt, buf["r_wp"][:, whole], buf["v"][:, whole], buf["omega"][:, whole], mu, env.plf_top_m
+                )
                 for key, value in stats.items():
                     out[key][ep[whole]] = value
             done_count += len(ended)
@@ -216,7 +248,12 @@ def probe_platform(env_cfg, bench, num_episodes: int, num_envs: int, progress: b
             now = time.perf_counter()
             if progress and (now - last_print > 2.0 or done_count == num_episodes):
                 last_print = now
-                print(f"\rplatform probe: {done_count}/{num_episodes} episodes", end="", file=sys.stderr, flush=True)
+                print(
+                    f"\rplatform probe: {done_count}/{num_episodes} episodes",
+                    end="",
+                    file=sys.stderr,
+                    flush=True,
+                )
     if progress:
         print(file=sys.stderr)
     env.on_step = env.episode_source = env.stepped_envs = None
@@ -226,7 +263,9 @@ def probe_platform(env_cfg, bench, num_episodes: int, num_envs: int, progress: b
 # -- the table ---------------------------------------------------------------------------------
 
 
-def episode_table(bench, episodes: dict[str, np.ndarray], probe: dict[str, np.ndarray] | None) -> dict[str, np.ndarray]:
+def episode_table(
+    bench, episodes: dict[str, np.ndarray], probe: dict[str, np.ndarray] | None
+) -> dict[str, np.ndarray]:
     """COLUMNS -> (K,) arrays for the first K benchmark episodes: their trajectory's N, their robot's
     intrinsics, how they ended and their metrics (`run_benchmark`'s episodes), the probe's columns
     (NaN without a probe)."""
@@ -300,8 +339,9 @@ def read_csv(path) -> dict[str, np.ndarray]:
             cells = [row[j] for row in body]
         except IndexError:
             short = next(i for i, row in enumerate(body) if len(row) <= j)
-            raise EpisodesFileError(f"{path}: row {short + 2} has {len(body[short])} cells, "
-                                    f"the header {len(header)}") from None  # fmt: skip
+            raise EpisodesFileError(
+                f"{path}: row {short + 2} has {len(body[short])} cells, the header {len(header)}"
+            ) from None
         if c in TEXT_COLUMNS:
             out[c] = np.array(cells, dtype=object)
             continue
@@ -309,7 +349,9 @@ def read_csv(path) -> dict[str, np.ndarray]:
             out[c] = np.array([float(x) if x != "" else np.nan for x in cells])
         except ValueError:
             bad = next(i for i, x in enumerate(cells) if x != "" and not _is_float(x))
-            raise EpisodesFileError(f"{path}: row {bad + 2}, column {c!r}: not a number: {cells[bad]!r}") from None
+            raise EpisodesFileError(
+                f"{path}: row {bad + 2}, column {c!r}: not a number: {cells[bad]!r}"
+            ) from None
     return out
 
 

@@ -1,4 +1,4 @@
-"""Benchmark metrics (SPEC §12), accumulated per env and step, closed per episode.
+"""Benchmark metrics (docs/method.md, Evaluation), accumulated per env and step, closed per episode.
 
 Every per-step quantity is counted on the steps *before* the episode's first collision (the
 collision step itself and anything after it are not counted). Columns:
@@ -6,7 +6,7 @@ collision step itself and anything after it are not counted). Columns:
 - height_violation_rate: share of counted steps with |p_body_p,z - h_des_p| > 0.1 m, where
   h_des_p = top + H_DES_ABOVE_TOP_M is 0.37 m above the platform's TOP surface in the platform
   frame, whatever height the policy was rewarded for (`rewards.h_des_from`): every method is scored
-  against the same band (SPEC §12, decided).
+  against the same band (docs/method.md, Evaluation).
 - position_deviation_m: mean over counted steps of ||p_body_p(t) - p_body_p(0)||, the trunk's
   position in the platform frame (it moves and turns with the platform).
 - position_deviation_translating_m (extra column): the same in the translating frame,
@@ -14,7 +14,7 @@ collision step itself and anything after it are not counted). Columns:
   the platform's rotation about its centre moves the trunk in it.
 - rotation_deviation_rad: mean over counted steps of the trunk's tilt change in the world frame:
   the angle between its z axis at t and at the episode's start, each seen from the trunk's own
-  heading frame (yaw removed), so turning about the vertical counts nothing. This is SPEC §12's
+  heading frame (yaw removed), so turning about the vertical counts nothing. This is docs/method.md's (Evaluation)
   decided reading: a policy that keeps its trunk level while the platform tilts (task3) turns
   relative to the platform, so only the world reading ranks it below Stand Still, as the paper does.
 - rotation_deviation_platform_rad (extra column): mean over counted steps of the angle of
@@ -46,7 +46,9 @@ ALL_METRICS = METRICS + EXTRA_METRICS
 # per-episode keys of `EpisodeMetrics.close` that feed each metric (the collision rate reads "collision")
 EPISODE_KEY = {m: ("collision" if m == "collision_rate" else m) for m in ALL_METRICS}
 
-H_DES_ABOVE_TOP_M = 0.37  # the paper's desired trunk height, above the platform's top surface (SPEC §12)
+H_DES_ABOVE_TOP_M = (
+    0.37  # the paper's desired trunk height, above the platform's top surface (docs/method.md, Evaluation)
+)
 VIOLATION_M = 0.1  # half-width of the height band
 
 
@@ -154,8 +156,9 @@ class EpisodeMetrics:
             }
 
 
-def summarize(episodes: dict[str, np.ndarray], num_batches: int = 10,
-              columns: tuple[str, ...] = METRICS) -> dict[str, dict[str, float]]:  # fmt: skip
+def summarize(
+    episodes: dict[str, np.ndarray], num_batches: int = 10, columns: tuple[str, ...] = METRICS
+) -> dict[str, dict[str, float]]:
     """Mean and std over consecutive batches of episodes (in benchmark order) of each metric in
     `columns` (default the paper's five; `ALL_METRICS` adds the extra readings)."""
     num = len(episodes["collision"])
@@ -164,7 +167,9 @@ def summarize(episodes: dict[str, np.ndarray], num_batches: int = 10,
     out = {}
     for metric in columns:
         values = np.asarray(episodes[EPISODE_KEY[metric]], dtype=float)
-        per_batch = np.array([np.nanmean(values[b]) if np.isfinite(values[b]).any() else np.nan for b in batches])
+        per_batch = np.array(
+            [np.nanmean(values[b]) if np.isfinite(values[b]).any() else np.nan for b in batches]
+        )
         finite = per_batch[np.isfinite(per_batch)]
         out[metric] = {
             "mean": float(finite.mean()) if len(finite) else float("nan"),

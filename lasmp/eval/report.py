@@ -67,8 +67,11 @@ def markdown(result: dict) -> str:
         if m is not None:
             lines.append(f"| {LABELS[key]} | {_num(m['mean'])} | {_num(m['std'])} |")
     if result.get("forced_episodes") is not None:
-        lines += ["", f"Forced episodes (the platform probe's Coulomb block slides off or loses contact): "
-                      f"{result['forced_episodes']} of {result['num_episodes']}."]  # fmt: skip
+        lines += [
+            "",
+            f"Forced episodes (the platform probe's Coulomb block slides off or loses contact): "
+            f"{result['forced_episodes']} of {result['num_episodes']}.",
+        ]
     est = result.get("estimator")
     if est:
         lines += [

@@ -1,4 +1,4 @@
-"""The README's results tables from evaluation outputs (`evaluate.py --out DIR` on Xi_eval), over seeds.
+"""The results tables (docs/results.md) from evaluation outputs (`evaluate.py --out DIR` on Xi_eval), over seeds.
 
     python -m lasmp.eval.results_table --method NAME DIR [DIR ...] [--method NAME DIR ...] [--json PATH]
     python -m lasmp.eval.results_table DIR [DIR ...] [--labels NAME ...]      # one seed per method
@@ -95,10 +95,14 @@ def summarize_method(results: list[dict], seeds: list[str]) -> dict:
     if est:
         dims = list(dict.fromkeys(d for e in est for d in e["x_exp_mean_abs_error"]))
         entry["estimator"] = {
-            "x_exp_mean_abs_error": {d: float(np.mean([e["x_exp_mean_abs_error"][d] for e in est
-                                                       if d in e["x_exp_mean_abs_error"]])) for d in dims},
+            "x_exp_mean_abs_error": {
+                d: float(
+                    np.mean([e["x_exp_mean_abs_error"][d] for e in est if d in e["x_exp_mean_abs_error"]])
+                )
+                for d in dims
+            },
             "l_imp_mean_l2_error": _mean_or_none([e.get("l_imp_mean_l2_error") for e in est]),
-        }  # fmt: skip
+        }
     return entry
 
 
@@ -124,8 +128,10 @@ def _cell(m: dict | None, fmt: str = ".3f") -> str:
 
 def metrics_table(summ: dict, columns: tuple[str, ...] = ALL_METRICS) -> str:
     """Methods x metrics, `mean ± ci95` over seeds (a method of one seed: its value)."""
-    lines = ["| method | " + " | ".join(LABELS[k] for k in columns) + " | seeds |",
-             "|---|" + "---|" * (len(columns) + 1)]  # fmt: skip
+    lines = [
+        "| method | " + " | ".join(LABELS[k] for k in columns) + " | seeds |",
+        "|---|" + "---|" * (len(columns) + 1),
+    ]
     for name, entry in summ["methods"].items():
         cells = [_cell(entry["metrics"].get(k)) for k in columns]
         lines.append(f"| {name} | " + " | ".join(cells) + f" | {len(entry['seeds'])} |")
@@ -169,8 +175,11 @@ def _groups(argv: list[str]) -> tuple[list[str], list[tuple[str, list[str]]]]:
 
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    p = argparse.ArgumentParser(prog="python -m lasmp.eval.results_table", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p = argparse.ArgumentParser(
+        prog="python -m lasmp.eval.results_table",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("dirs", nargs="*", help="evaluation directories, one method each (or use --method groups)")
     p.add_argument("--labels", nargs="+", help="with plain DIRs: row names (default: the directory names)")
     p.add_argument("--json", type=Path, default=DEFAULT_JSON, help=f"summary file (default {DEFAULT_JSON})")

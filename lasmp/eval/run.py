@@ -20,8 +20,7 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
-from lasmp.envs.moving_platform.domain_rand import Intrinsics
-from lasmp.envs.robot import as_numpy, take_columns
+from lasmp.envs.robot import Intrinsics, as_numpy, take_columns
 from lasmp.eval.metrics import EpisodeMetrics, TrunkPose, metric_h_des_p_m
 from lasmp.robots import a1
 
@@ -61,9 +60,17 @@ class BenchmarkSource:
 
 FALL_CAUSES = ("off_footprint", "below_top")
 FAULT_CAUSE = "fault"
-EPISODE_KEYS = ("collision", "steps", "height_violation_rate", "position_deviation_m",
-                "position_deviation_translating_m", "rotation_deviation_rad", "rotation_deviation_platform_rad",
-                "power_w", "collision_time_s")  # fmt: skip
+EPISODE_KEYS = (
+    "collision",
+    "steps",
+    "height_violation_rate",
+    "position_deviation_m",
+    "position_deviation_translating_m",
+    "rotation_deviation_rad",
+    "rotation_deviation_platform_rad",
+    "power_w",
+    "collision_time_s",
+)
 
 
 def fall_kinds(env, p_body_p: np.ndarray) -> np.ndarray:
@@ -86,8 +93,16 @@ def cause_names(contact: np.ndarray, fell: np.ndarray) -> np.ndarray:
     return np.array(["+".join(names[row]) or FAULT_CAUSE for row in flags], dtype=object)
 
 
-def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=None, trace: bool = False,
-                  progress: bool = True, shrink_tail: bool = True) -> dict:  # fmt: skip
+def run_benchmark(
+    env,
+    controller: Controller,
+    bench,
+    num_episodes: int,
+    policy=None,
+    trace: bool = False,
+    progress: bool = True,
+    shrink_tail: bool = True,
+) -> dict:
     """Play `num_episodes` benchmark episodes; per-episode metrics and ends (arrays in benchmark
     order, `EPISODE_KEYS` and `collision_cause`), estimator errors (if `policy` is given) and, with
     `trace`, the estimated and true x_exp over the longest episode of the first wave (episodes
@@ -107,8 +122,14 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
     def capture(readout, collision):
         r = as_numpy(readout)  # the metrics run on the host
         contact = take_columns(env.sim.sensordata, env.index.collision_cols).cpu().numpy() > 0
-        captured.update(pose=TrunkPose.from_readout(r), tau=r.tau, q_dot=r.q_dot,
-                        collision=collision.cpu().numpy(), contact=contact, fell=fall_kinds(env, r.p_body_p))  # fmt: skip
+        captured.update(
+            pose=TrunkPose.from_readout(r),
+            tau=r.tau,
+            q_dot=r.q_dot,
+            collision=collision.cpu().numpy(),
+            contact=contact,
+            fell=fall_kinds(env, r.p_body_p),
+        )
 
     env.on_step = capture
     obs, _ = env.reset()
@@ -139,7 +160,9 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
                 for key, value in closed.items():
                     episodes[key][rows] = value
                 # the collision step is the first one not counted: it ends at (steps + 1) dt
-                episodes["collision_time_s"][rows] = np.where(collided, (closed["steps"] + 1) * env.dt_s, np.nan)
+                episodes["collision_time_s"][rows] = np.where(
+                    collided, (closed["steps"] + 1) * env.dt_s, np.nan
+                )
                 causes = cause_names(captured["contact"][ids], captured["fell"][ids])
                 episodes["collision_cause"][rows] = np.where(collided, causes, "")
                 done_count += len(ids)
@@ -151,8 +174,12 @@ def run_benchmark(env, controller: Controller, bench, num_episodes: int, policy=
                 last_print = now
                 rate = done_count / max(now - start, 1e-9)
                 eta = (num_episodes - done_count) / rate if rate > 0 else float("nan")
-                print(f"\r{done_count}/{num_episodes} episodes | {rate:.1f} episodes/s | ETA {eta:5.0f} s",
-                      end="", file=sys.stderr, flush=True)  # fmt: skip
+                print(
+                    f"\r{done_count}/{num_episodes} episodes | {rate:.1f} episodes/s | ETA {eta:5.0f} s",
+                    end="",
+                    file=sys.stderr,
+                    flush=True,
+                )
     if progress:
         print(file=sys.stderr)
     env.on_step = None

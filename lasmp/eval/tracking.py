@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from lasmp.envs.scene import POSE_TO_JOINT
+from lasmp.envs.moving_platform.scene import POSE_TO_JOINT
 
 
 def record_platform(env, steps: int | None = None) -> dict[str, np.ndarray]:

@@ -1,4 +1,4 @@
-"""Implicit encoder h_theta: x_imp -> l_imp (SPEC §8)."""
+"""Implicit encoder h_theta: x_imp -> l_imp (docs/method.md, Networks)."""
 
 from __future__ import annotations
 

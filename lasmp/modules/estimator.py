@@ -1,4 +1,4 @@
-"""History estimators h_psi: o^H -> estimate (SPEC §8): per-step MLP, 2-layer temporal CNN, linear head."""
+"""History estimators h_psi: o^H -> estimate (docs/method.md, Networks): per-step MLP, 2-layer temporal CNN, linear head."""
 
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ class HistoryEstimator(nn.Module):
     def forward(self, history: torch.Tensor) -> torch.Tensor:
         """(n, H, obs_dim) -> (n, out_dim)."""
         z = self.step_mlp(history)  # (n, H, mlp_dim)
-        # (n, channels, L). Contiguous first: oneDNN convolved the transposed view more slowly (both layers,
-        # forward and backward: 1.25x as long in float32, 1.4x in bfloat16), to the same values bit for bit
+        # (n, channels, L). Contiguous first: oneDNN convolves the transposed view more slowly, to the same
+        # values bit for bit (docs/performance.md, "Measured and not kept")
         z = self.cnn(z.transpose(1, 2).contiguous())
         return self.head(z.flatten(1))

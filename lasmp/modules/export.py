@@ -22,17 +22,37 @@ BODY_FRAME = "trunk (body) frame at the IMU/trunk origin: x forward, y left, z u
 # o_t, slot by slot, as `lasmp.envs.robot.proprioception` builds it (tests/test_export.py holds the
 # two together); `components` name each column, `start` is the first column of the slot in o_t
 _OBS_SLOTS: tuple[tuple[str, tuple[str, ...], str, str, str], ...] = (
-    ("accelerometer", ("x", "y", "z"), "m/s^2", BODY_FRAME,
-     "IMU specific force (what an accelerometer reads: +9.81 on z when standing still and level)"),
+    (
+        "accelerometer",
+        ("x", "y", "z"),
+        "m/s^2",
+        BODY_FRAME,
+        "IMU specific force (what an accelerometer reads: +9.81 on z when standing still and level)",
+    ),
     ("gyro", ("x", "y", "z"), "rad/s", BODY_FRAME, "IMU angular velocity of the trunk"),
-    ("roll_pitch", ("roll", "pitch"), "rad", "trunk attitude w.r.t. gravity",
-     "ZYX Euler angles of the trunk, R_world_body = Rz(yaw) Ry(pitch) Rx(roll); yaw is not observed"),
-    ("joint_pos", (), "rad", "joint space, order joint_names",
-     "joint angle relative to the default pose: q - default_joint_pos_rad"),
+    (
+        "roll_pitch",
+        ("roll", "pitch"),
+        "rad",
+        "trunk attitude w.r.t. gravity",
+        "ZYX Euler angles of the trunk, R_world_body = Rz(yaw) Ry(pitch) Rx(roll); yaw is not observed",
+    ),
+    (
+        "joint_pos",
+        (),
+        "rad",
+        "joint space, order joint_names",
+        "joint angle relative to the default pose: q - default_joint_pos_rad",
+    ),
     ("joint_vel", (), "rad/s", "joint space, order joint_names", "joint angular velocity q_dot"),
-    ("last_action", (), "1 (raw policy output)", "joint space, order joint_names",
-     "the previous step's action after the clip to +-action_clip, before scaling; 0 at the first step"),
-)  # fmt: skip
+    (
+        "last_action",
+        (),
+        "1 (raw policy output)",
+        "joint space, order joint_names",
+        "the previous step's action after the clip to +-action_clip, before scaling; 0 at the first step",
+    ),
+)
 
 
 def observation_layout(joint_names: tuple[str, ...] | list[str]) -> list[dict]:
@@ -40,8 +60,17 @@ def observation_layout(joint_names: tuple[str, ...] | list[str]) -> list[dict]:
     slots, start = [], 0
     for name, components, unit, frame, description in _OBS_SLOTS:
         components = components or tuple(joint_names)
-        slots.append({"name": name, "start": start, "size": len(components), "unit": unit, "frame": frame,
-                      "description": description, "components": list(components)})  # fmt: skip
+        slots.append(
+            {
+                "name": name,
+                "start": start,
+                "size": len(components),
+                "unit": unit,
+                "frame": frame,
+                "description": description,
+                "components": list(components),
+            }
+        )
         start += len(components)
     return slots
 

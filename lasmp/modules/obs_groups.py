@@ -1,4 +1,4 @@
-"""The layout of the policy's observation groups, as the actor reads them (SPEC §7-8).
+"""The layout of the policy's observation groups, as the actor reads them (docs/method.md, Inputs and Networks).
 
 The group names, the columns of o and x_exp the actor picks, the x_exp selections of the
 ablations, and the alignment command rebuilt from x_exp estimates. The envs write these groups

@@ -222,7 +222,9 @@ class LasmpActor(MLPModel):
         self, estimates: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
         """The inverse of `detached_estimates`' concatenation."""
-        x_hat, l_hat, u_hat = estimates.split([self.num_explicit, self.latent_dim, self.num_alignment], dim=-1)
+        x_hat, l_hat, u_hat = estimates.split(
+            [self.num_explicit, self.latent_dim, self.num_alignment], dim=-1
+        )
         return x_hat, l_hat, (u_hat if self.use_alignment else None)
 
     def update_normalization(self, obs: TensorDict) -> None:
@@ -238,7 +240,9 @@ class LasmpActor(MLPModel):
     # ----------------------------------------------------------------- ROA
     def estimators(self) -> list[HistoryEstimator]:
         """The history estimators (psi): the implicit one, and the explicit one if any."""
-        return [self.implicit_estimator] + ([self.explicit_estimator] if self.explicit_estimator is not None else [])
+        return [self.implicit_estimator] + (
+            [self.explicit_estimator] if self.explicit_estimator is not None else []
+        )
 
     def estimator_parameters(self) -> list[nn.Parameter]:
         """Parameters of both history estimators (psi)."""

@@ -1,6 +1,6 @@
 """The visual-only world for rendering: ground grid, sky, lights and reference pillars.
 
-The physics model of a task (`lasmp.envs.scene` / `lasmp.envs.rough_static.terrain`) is a robot
+The physics model of a task (`lasmp.envs.moving_platform.scene` / `lasmp.envs.rough_static.terrain`) is a robot
 and a platform (or a heightfield) in an empty world, tuned for stepping speed. To make the
 platform's motion visible, rendering uses a second model: the same `MjSpec` plus decorations
 that change nothing physical:
@@ -170,7 +170,7 @@ def physics_spec(env) -> tuple[mujoco.MjSpec, WorldLayout]:
 
     cfg = env.cfg
     if isinstance(env, MovingPlatformEnv):
-        from lasmp.envs.scene import build_spec
+        from lasmp.envs.moving_platform.scene import build_spec
 
         return build_spec(cfg.platform, cfg.sim), platform_layout(cfg.platform.size_m)
     if isinstance(env, RoughStaticEnv):

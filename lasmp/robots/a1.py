@@ -1,7 +1,7 @@
 """Unitree A1 constants: every per-robot number the envs need, in one place.
 
 Model: ``resources/robots/a1/a1.xml`` (authored for this project from the published A1
-parameters, SPEC §2).
+parameters, docs/world.md, The robot).
 
 Frames: trunk/body frame x forward, y left, z up, origin at the trunk box centre (the ``imu``
 site). The trunk's CoM is offset from that origin by ``TRUNK_COM_M``.
@@ -36,7 +36,7 @@ TRUNK_BODY_NAME = "trunk"
 ROOT_JOINT_NAME = "root"
 
 # Nominal stance q_nominal (rad), order JOINT_NAMES: hips splayed out (+0.1 left, -0.1 right),
-# thighs 0.8 front / 1.0 rear, calves -1.5 (SPEC §2).
+# thighs 0.8 front / 1.0 rear, calves -1.5 (docs/world.md, The robot).
 _HIP_OUT_RAD = 0.1  # hip abduction magnitude; sign: + for left legs, - for right (= splayed out)
 Q_NOMINAL_RAD: np.ndarray = np.concatenate(
     [

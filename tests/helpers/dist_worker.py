@@ -24,11 +24,17 @@ def main() -> None:
     runner = train(cfg)
     rank = int(os.environ["RANK"])
     curriculum = runner.env.curriculum
-    torch.save({"actor": runner.alg.actor.state_dict(), "critic": runner.alg.critic.state_dict(),
-                "estimators": runner.alg.estimator_optimizer.state_dict()["state"],
-                "curriculum": curriculum.state_dict() if curriculum is not None else None,
-                "iteration": runner.current_learning_iteration,
-                "seed": runner.env.cfg.seed}, out / f"rank{rank}.pt")  # fmt: skip
+    torch.save(
+        {
+            "actor": runner.alg.actor.state_dict(),
+            "critic": runner.alg.critic.state_dict(),
+            "estimators": runner.alg.estimator_optimizer.state_dict()["state"],
+            "curriculum": curriculum.state_dict() if curriculum is not None else None,
+            "iteration": runner.current_learning_iteration,
+            "seed": runner.env.cfg.seed,
+        },
+        out / f"rank{rank}.pt",
+    )
 
 
 if __name__ == "__main__":

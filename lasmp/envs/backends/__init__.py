@@ -43,14 +43,18 @@ import torch
 BACKENDS = ("cpu", "warp")
 
 
-def make_backend(name: str, model: mujoco.MjModel, num_envs: int, sim_cfg, device: torch.device | str = "cpu"):
+def make_backend(
+    name: str, model: mujoco.MjModel, num_envs: int, sim_cfg, device: torch.device | str = "cpu"
+):
     """The physics backend `name` for `num_envs` copies of `model` (`sim_cfg`: an `env.sim` config),
     its tensors on `device`."""
     device = torch.device(device)
     if name == "cpu":
         if device.type != "cpu":
-            raise ValueError(f"env.backend=cpu keeps its state on the CPU; got device={device}. "
-                             "Use env.backend=warp for a CUDA device.")  # fmt: skip
+            raise ValueError(
+                f"env.backend=cpu keeps its state on the CPU; got device={device}. "
+                "Use env.backend=warp for a CUDA device."
+            )
         from lasmp.envs.backends.cpu import CpuBatchSim
 
         return CpuBatchSim(model, num_envs, sim_cfg.num_threads)

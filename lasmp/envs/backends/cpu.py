@@ -71,8 +71,10 @@ class CpuBatchSim:
         """Restore `get_state` output: the model fields (and the constants derived from them), the
         integration state, and the position and velocity stages a step continues from."""
         if saved["state"].shape != self.batch.state.shape:
-            raise ValueError(f"saved physics state has shape {saved['state'].shape}, this batch "
-                             f"{self.batch.state.shape} (another num_envs or model)")  # fmt: skip
+            raise ValueError(
+                f"saved physics state has shape {saved['state'].shape}, this batch "
+                f"{self.batch.state.shape} (another num_envs or model)"
+            )
         for name, values in saved["model"].items():
             self.expand(name)[:] = torch.as_tensor(values)
         self.batch.set_const()
@@ -106,7 +108,9 @@ class CpuBatchSim:
         """Recompute the derived quantities of envs `ids` (all if None) after their state was written."""
         self.batch.forward(None if ids is None else _index_array(ids))
 
-    def reset(self, ids: torch.Tensor, qpos: torch.Tensor, qvel: torch.Tensor, ctrl: torch.Tensor, set_const: bool):
+    def reset(
+        self, ids: torch.Tensor, qpos: torch.Tensor, qvel: torch.Tensor, ctrl: torch.Tensor, set_const: bool
+    ):
         """Fresh data for envs `ids` at the given state, derived quantities computed (mj_forward)."""
         ids_np = _index_array(ids)
         self.batch.reset(ids_np, stage=_STAGE_NONE)

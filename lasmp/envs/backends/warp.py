@@ -267,8 +267,10 @@ class WarpSim:
         integration state, and the position and velocity stages a step continues from."""
         shape = tuple(self._state_buf.shape)
         if tuple(saved["state"].shape) != shape:
-            raise ValueError(f"saved physics state has shape {tuple(saved['state'].shape)}, this backend "
-                             f"{shape} (another num_envs or model)")  # fmt: skip
+            raise ValueError(
+                f"saved physics state has shape {tuple(saved['state'].shape)}, this backend "
+                f"{shape} (another num_envs or model)"
+            )
         for name, values in saved["model"].items():
             view = self.expand(name)
             view[:] = torch.as_tensor(values).to(view)

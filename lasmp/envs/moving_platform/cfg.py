@@ -1,14 +1,15 @@
 """The moving-platform task's env config: `MovingPlatformCfg` and its parts (platform, trajectories,
 curriculum, rewards, termination), on top of the shared `lasmp.config.BaseEnvCfg`.
 
-Hydra registers it as the `env` option `moving_platform` (`lasmp/train_cfg.py`). This module imports
-the reward terms' registry (to check weight names) and the trajectory splines (to check kind and
-degree), never the env: `lasmp.envs.moving_platform.env` imports this module.
+Hydra registers it as the `env` option `moving_platform` (`lasmp/train_cfg.py`, from the task registry
+`lasmp/envs/registry.py`). The rewards' entry, `RewardsCfg`, lives with the terms that read it
+(`rewards.py`). This module imports those and the trajectory splines (to check kind and degree), never
+the env: `lasmp.envs.moving_platform.env` imports this module.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 from lasmp.config import (
     BaseEnvCfg,
@@ -18,8 +19,7 @@ from lasmp.config import (
     check_positive,
 )
 from lasmp.envs import trajectories as trj
-from lasmp.envs.moving_platform.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_TERMS
-from lasmp.envs.reward_registry import check_reward_weights
+from lasmp.envs.moving_platform.rewards import RewardsCfg
 
 
 @dataclass
@@ -96,35 +96,6 @@ class CurriculumCfg:
             raise ConfigError(
                 f"{p}.replay_lower_fraction must be in [0, 1), got {self.replay_lower_fraction}"
             )
-
-
-@dataclass
-class RewardsCfg:
-    weights: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_REWARD_WEIGHTS))
-    sigma_center_m: float = 1.2  # k2
-    sigma_alignment: float = 0.3  # k4
-    sigma_level_rad: float = 0.2  # k6
-    sigma_height_m: float = 0.1  # k8
-    h_des_m: float = 0.37  # desired trunk height, measured from `h_des_from`
-    # where h_des is measured from: "top" = the platform's top surface (the trunk 0.37 m above it), the
-    # paper's reading, the same as the benchmark's height metric; "centre" = the platform frame's
-    # origin, its CoM 0.1 m below the top (0.27 m above the surface): a crouch it rewards (ours, an option)
-    h_des_from: str = "top"
-    f_tol_n: float = 50.0
-    t_swing_des_s: float = 0.1
-    t_contact_des_s: float = 0.5
-
-    def validate(self, p: str):
-        check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
-        if self.h_des_from not in ("top", "centre"):
-            raise ConfigError(f"{p}.h_des_from must be 'top' or 'centre', got {self.h_des_from!r}")
-        for f in fields(self):
-            if f.name not in ("weights", "h_des_from"):
-                check_positive(f"{p}.{f.name}", getattr(self, f.name))
-
-    def h_des_p_m(self, plf_top_m: float) -> float:
-        """h_des in the platform frame (origin at its CoM), m: what rewards and metrics compare p_body_p,z to."""
-        return self.h_des_m + (plf_top_m if self.h_des_from == "top" else 0.0)
 
 
 @dataclass

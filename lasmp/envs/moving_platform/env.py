@@ -18,39 +18,43 @@ import numpy as np
 import torch
 from tensordict import TensorDict
 
-from lasmp.config import build_env_cfg
 from lasmp.envs import trajectories as trj
 from lasmp.envs.base_env import BaseEnv, column_runs
 from lasmp.envs.curriculum import SharedCurriculum, WaypointCurriculum
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
-from lasmp.envs.moving_platform.domain_rand import (
-    Intrinsics,
-    IntrinsicsWriter,
-    nominal_intrinsics,
-    sample_intrinsics,
-)
+from lasmp.envs.moving_platform.domain_rand import IntrinsicsWriter
 from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read
-from lasmp.envs.moving_platform.rewards import RewardManager, RewardParams
-from lasmp.envs.moving_platform.state import StepState
-from lasmp.envs.robot import OBS_DIM, as_slice, proprioception, screen_faults, update_rows
-from lasmp.envs.rotations import yaw_quat
-from lasmp.envs.scene import (
+from lasmp.envs.moving_platform.rewards import REWARD_TERMS
+from lasmp.envs.moving_platform.scene import (
     POSE_TO_JOINT,
     build_model,
     platform_actuator_ids,
     platform_gains,
     platform_top_z_m,
 )
+from lasmp.envs.moving_platform.state import StepState
+from lasmp.envs.rewards import RewardManager
+from lasmp.envs.robot import (
+    OBS_DIM,
+    Intrinsics,
+    as_slice,
+    nominal_intrinsics,
+    proprioception,
+    sample_intrinsics,
+    screen_faults,
+    step_gait_phase,
+    update_rows,
+)
+from lasmp.envs.rotations import yaw_quat
 from lasmp.envs.trajectories.device import DevicePoly
 from lasmp.robots import a1
 
 
 class MovingPlatformEnv(BaseEnv):
-    def __init__(self, cfg: MovingPlatformCfg | dict | None = None, device="cpu"):
-        if not isinstance(cfg, MovingPlatformCfg):
-            cfg = build_env_cfg(cfg, schema=MovingPlatformCfg)
-        else:
-            cfg.validate()
+    cfg_class = MovingPlatformCfg
+
+    def __init__(self, cfg: MovingPlatformCfg, device="cpu"):
+        self.check_cfg(cfg)
         model = build_model(cfg.platform, cfg.sim)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
         super().__init__(cfg, model, 12, int(round(cfg.trajectory.duration_s / dt_s)), device)
@@ -65,7 +69,9 @@ class MovingPlatformEnv(BaseEnv):
         self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
         self.q_nominal = self.tensor(a1.Q_NOMINAL_RAD)
         self.trunk_height_m = a1.nominal_trunk_height_m(model)
-        self.plf_act_adr = torch.as_tensor(model.actuator_actadr[plf_act_pos], device=dev)  # servo targets in `act`
+        self.plf_act_adr = torch.as_tensor(
+            model.actuator_actadr[plf_act_pos], device=dev
+        )  # servo targets in `act`
         self.robot_act = self.index.joint_act
         # the columns the step writes, as slices where they are (evenly spaced runs: faster writes)
         self._robot_ctrl, self._plf_pos_ctrl, self._plf_vel_ctrl, self._plf_act = (
@@ -101,11 +107,8 @@ class MovingPlatformEnv(BaseEnv):
         rc = cfg.rewards
         self.plf_top_m = platform_top_z_m(cfg.platform)
         self.h_des_p_m = rc.h_des_p_m(self.plf_top_m)  # desired trunk height in the platform frame
-        params = RewardParams(
-            rc.sigma_center_m, rc.sigma_alignment, rc.sigma_level_rad, rc.sigma_height_m, self.h_des_p_m,
-            rc.f_tol_n, rc.t_swing_des_s, rc.t_contact_des_s,
-        )  # fmt: skip
-        self.rewards = RewardManager(rc.weights, params, n, device=dev)
+        # the terms read h_des in the platform frame
+        self.rewards = RewardManager(REWARD_TERMS, rc.weights, rc.in_platform_frame(self.plf_top_m), n, dev)
         self.plf_half_xy_m = self.tensor(cfg.platform.size_m[:2]) / 2.0
         # every group is a run of the critic's columns [o, x_exp, x_imp, u_aln, p_body_p (3), phi_body_w (3)]
         self.obs_columns = column_runs(
@@ -169,38 +172,33 @@ class MovingPlatformEnv(BaseEnv):
         collision = r.body_collision | fell
         dt = self.dt_s
         contact = r.foot_contact
-        touchdown = contact & ~self.contact_prev
-        liftoff = ~contact & self.contact_prev
-        self.t_air_s += dt * (~contact).to(self.dtype)
-        self.t_contact_s += dt * contact.to(self.dtype)
-        t_air_ended = torch.where(touchdown, self.t_air_s, 0.0)
-        t_contact_ended = torch.where(liftoff, self.t_contact_s, 0.0)
-        self.t_air_s.masked_fill_(contact, 0.0)
-        self.t_contact_s.masked_fill_(~contact, 0.0)
-        self.contact_prev = contact.clone()  # not the readout's own: its reset rows are read anew
+        gait = step_gait_phase(contact, self.contact_prev, self.t_air_s, self.t_contact_s, dt)
         f32 = torch.float32  # rewards are computed in float32 on every backend
+        from_readout = (
+            "p_body_p",
+            "phi_body_w",
+            "v_body_b",
+            "omega_body_b",
+            "v_plf_b",
+            "omega_plf_b",
+            "u_aln",
+            "tau",
+            "q_dot",
+            "f_feet_w",
+            "v_slip_p",
+        )
         state = StepState(
             dt_s=dt,
-            p_body_p=r.p_body_p.to(f32),
-            phi_body_w=r.phi_body_w.to(f32),
-            v_body_b=r.v_body_b.to(f32),
-            omega_body_b=r.omega_body_b.to(f32),
-            v_plf_b=r.v_plf_b.to(f32),
-            omega_plf_b=r.omega_plf_b.to(f32),
-            u_aln=r.u_aln.to(f32),
+            **{name: getattr(r, name).to(f32) for name in from_readout},
             action=self.action.to(f32),
             action_prev=self.action_prev.to(f32),
-            tau=r.tau.to(f32),
             tau_prev=self.tau_prev.to(f32),
-            q_dot=r.q_dot.to(f32),
             q_ddot=((r.q_dot - self.q_dot_prev) / dt).to(f32),
-            f_feet_w=r.f_feet_w.to(f32),
             contact=contact,
-            touchdown=touchdown,
-            liftoff=liftoff,
-            t_air_s=t_air_ended.to(f32),
-            t_contact_s=t_contact_ended.to(f32),
-            v_slip_p=r.v_slip_p.to(f32),
+            touchdown=gait.touchdown,
+            liftoff=gait.liftoff,
+            t_air_s=gait.t_air_s.to(f32),
+            t_contact_s=gait.t_contact_s.to(f32),
             collision=collision,
         )
         self.last_state = state
@@ -278,9 +276,18 @@ class MovingPlatformEnv(BaseEnv):
         m = self.sim.model
         ctrl = torch.zeros((n, m.nu), dtype=self.dtype, device=self.device)
         ctrl[:, self.robot_act] = self.q_nominal
-        self.sim.reset(ids, qpos, torch.zeros((n, m.nv), dtype=self.dtype, device=self.device), ctrl, set_const=True)
+        self.sim.reset(
+            ids, qpos, torch.zeros((n, m.nv), dtype=self.dtype, device=self.device), ctrl, set_const=True
+        )
 
-        for buf in (self.action, self.action_prev, self.tau_prev, self.q_dot_prev, self.t_air_s, self.t_contact_s):
+        for buf in (
+            self.action,
+            self.action_prev,
+            self.tau_prev,
+            self.q_dot_prev,
+            self.t_air_s,
+            self.t_contact_s,
+        ):
             buf[ids] = 0.0
         self.contact_prev[ids] = False
         self._fresh = ids  # their history is filled with their first observation
@@ -296,15 +303,40 @@ class MovingPlatformEnv(BaseEnv):
         r = self.readout
         o = proprioception(r, self.action, self.q_nominal)
         critic = torch.cat(
-            [o, r.foot_contact.to(self.dtype), r.v_body_b, r.v_plf_b, r.omega_plf_b, self.x_imp, r.u_aln,
-             r.p_body_p, r.phi_body_w], dim=1,
-        )  # fmt: skip
+            [
+                o,
+                r.foot_contact.to(self.dtype),
+                r.v_body_b,
+                r.v_plf_b,
+                r.omega_plf_b,
+                self.x_imp,
+                r.u_aln,
+                r.p_body_p,
+                r.phi_body_w,
+            ],
+            dim=1,
+        )
         return self._package_observations(critic, self.obs_columns)
 
     # -- checkpoint state ----------------------------------------------------------------------
-    TASK_STATE = ("action", "action_prev", "tau_prev", "q_dot_prev", "contact_prev", "t_air_s", "t_contact_s",
-                  "traj", "traj_dev", "traj_level", "_file_cursor", "intrinsics", "x_imp", "rewards", "readout",
-                  "last_state")  # fmt: skip
+    TASK_STATE = (
+        "action",
+        "action_prev",
+        "tau_prev",
+        "q_dot_prev",
+        "contact_prev",
+        "t_air_s",
+        "t_contact_s",
+        "traj",
+        "traj_dev",
+        "traj_level",
+        "_file_cursor",
+        "intrinsics",
+        "x_imp",
+        "rewards",
+        "readout",
+        "last_state",
+    )
     RUN_STATE_CLASSES = (StepState, Readout)
 
     def _task_state(self) -> dict:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import mujoco
 import torch
 
+from lasmp.envs.moving_platform.scene import PLATFORM_JOINTS
 from lasmp.envs.robot import (
     RobotIndex,
     RobotReadout,
@@ -23,7 +24,6 @@ from lasmp.envs.robot import (
     take_columns,
 )
 from lasmp.envs.rotations import mat_from_euler_zyx, rotate_inv
-from lasmp.envs.scene import PLATFORM_JOINTS
 from lasmp.robots import a1
 
 
@@ -45,7 +45,9 @@ class ReadoutIndex(RobotIndex):
 
     def __init__(self, model: mujoco.MjModel, device: torch.device | str = "cpu"):
         super().__init__(model, device)
-        self.plf_qpos = torch.as_tensor([int(model.joint(j).qposadr[0]) for j in PLATFORM_JOINTS], device=device)
+        self.plf_qpos = torch.as_tensor(
+            [int(model.joint(j).qposadr[0]) for j in PLATFORM_JOINTS], device=device
+        )
         self.plf_linvel = sensor_columns(model, "plf_linvel")
         self.plf_angvel = sensor_columns(model, "plf_angvel")
         # (4, 3): per leg, the columns of its foot's linear-velocity sensor

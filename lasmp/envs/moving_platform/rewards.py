@@ -1,14 +1,16 @@
-"""LAS-MP reward terms (SPEC §10) as a registry of small pure functions; weights are data.
+"""LAS-MP reward terms (SPEC §10) as a registry of small pure functions, and their config entry
+`RewardsCfg` (the weights and the terms' shape parameters, declared once: the terms read it).
 
 Each registered term returns its UNWEIGHTED value, shape (num_envs,), as a positive magnitude;
-the sign lives in the weight. The paper's 12 terms are split into atomic named terms, one
-weight each, the name's prefix being the paper term. Paper coefficients k0..k18 map as:
+the sign lives in the weight (`lasmp.envs.rewards` sums them). The paper's 12 terms are split
+into atomic named terms, one weight each, the name's prefix being the paper term. Paper
+coefficients k0..k18 map as:
 
     k0        -> weight of task0_collision (-k0)
-    k1, k2    -> weight of task1_center,    RewardParams.sigma_center_m
-    k3, k4    -> weight of task2_alignment, RewardParams.sigma_alignment
-    k5, k6    -> weight of task3_level,     RewardParams.sigma_level_rad
-    k7, k8    -> weight of task4_height,    RewardParams.sigma_height_m
+    k1, k2    -> weight of task1_center,    RewardsCfg.sigma_center_m
+    k3, k4    -> weight of task2_alignment, RewardsCfg.sigma_alignment
+    k5, k6    -> weight of task3_level,     RewardsCfg.sigma_level_rad
+    k7, k8    -> weight of task4_height,    RewardsCfg.sigma_height_m
     k9, k10   -> reg0_torque_rate, reg0_action_rate (-k)
     k11..k13  -> reg1_torque, reg1_joint_vel, reg1_joint_acc (-k)
     k14       -> reg2_power (-k)
@@ -25,132 +27,103 @@ Our choices (SPEC §10 leaves them open):
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+import dataclasses
+from dataclasses import dataclass, field
 
 import torch
 
+from lasmp.config import ConfigError, check_positive
+from lasmp.envs import rewards as shared
 from lasmp.envs.moving_platform.state import StepState
-from lasmp.envs.reward_registry import check_reward_weights, make_registry, squared_norm
 
-
-@dataclass
-class RewardParams:
-    """Shape parameters of the reward terms (not weights)."""
-
-    sigma_center_m: float = 1.2  # k2, task1 length scale, m
-    sigma_alignment: float = 0.3  # k4, task2 scale of ‖u_aln‖ (mixed m/s and rad/s)
-    sigma_level_rad: float = 0.2  # k6, task3 scale of trunk roll/pitch, rad
-    sigma_height_m: float = 0.1  # k8, task4 height scale, m
-    h_des_m: float = 0.37  # desired trunk height in the platform frame (origin at its CoM), m
-    f_tol_n: float = 50.0  # contact-force tolerance per foot, N
-    t_swing_des_s: float = 0.1  # desired minimal air time, s
-    t_contact_des_s: float = 0.5  # desired minimal contact time, s
-
-
-RewardFn = Callable[[StepState, RewardParams], torch.Tensor]
-REWARD_TERMS, reward_term = make_registry()  # name -> RewardFn
-
-
-_sq = squared_norm
+REWARD_TERMS, reward_term = shared.make_registry()  # name -> fn(StepState, RewardsCfg)
 
 
 # ---- task terms -------------------------------------------------------------------------
 
 
 @reward_term
-def task0_collision(s: StepState, p: RewardParams) -> torch.Tensor:
+def task0_collision(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """1 if trunk/limbs touch something or the robot fell off."""
     return s.collision.to(s.p_body_p.dtype)
 
 
 @reward_term
-def task1_center(s: StepState, p: RewardParams) -> torch.Tensor:
+def task1_center(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """exp(-‖p_body_p,xy‖ / sigma): stay at the platform's centre."""
-    return torch.exp(-torch.linalg.vector_norm(s.p_body_p[:, :2], dim=-1) / p.sigma_center_m)
+    return torch.exp(-torch.linalg.vector_norm(s.p_body_p[:, :2], dim=-1) / c.sigma_center_m)
 
 
 @reward_term
-def task2_alignment(s: StepState, p: RewardParams) -> torch.Tensor:
+def task2_alignment(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """exp(-‖u_aln‖ / sigma): move with the platform."""
-    return torch.exp(-torch.linalg.vector_norm(s.u_aln, dim=-1) / p.sigma_alignment)
+    return torch.exp(-torch.linalg.vector_norm(s.u_aln, dim=-1) / c.sigma_alignment)
 
 
 @reward_term
-def task3_level(s: StepState, p: RewardParams) -> torch.Tensor:
+def task3_level(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """exp(-‖(roll, pitch)‖ / sigma): keep the trunk level in the world."""
-    return torch.exp(-torch.linalg.vector_norm(s.phi_body_w[:, :2], dim=-1) / p.sigma_level_rad)
+    return torch.exp(-torch.linalg.vector_norm(s.phi_body_w[:, :2], dim=-1) / c.sigma_level_rad)
 
 
 @reward_term
-def task4_height(s: StepState, p: RewardParams) -> torch.Tensor:
-    """exp(-|z - h_des| / sigma), z in the platform frame."""
-    return torch.exp(-torch.abs(s.p_body_p[:, 2] - p.h_des_m) / p.sigma_height_m)
+def task4_height(s: StepState, c: RewardsCfg) -> torch.Tensor:
+    """exp(-|z - h_des| / sigma), z in the platform frame; h_des too: the terms get the config
+    `in_platform_frame` (h_des measured from the frame's origin)."""
+    return torch.exp(-torch.abs(s.p_body_p[:, 2] - c.h_des_m) / c.sigma_height_m)
 
 
 # ---- regularization terms ---------------------------------------------------------------
 
 
 @reward_term
-def reg0_torque_rate(s: StepState, p: RewardParams) -> torch.Tensor:
+def reg0_torque_rate(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """‖tau - tau_prev‖², (N·m)²."""
-    return _sq(s.tau - s.tau_prev)
+    return shared.squared_norm(s.tau - s.tau_prev)
+
+
+reg0_action_rate = reward_term(shared.action_rate_sq, "reg0_action_rate")
+reg1_torque = reward_term(shared.torque_sq, "reg1_torque")
 
 
 @reward_term
-def reg0_action_rate(s: StepState, p: RewardParams) -> torch.Tensor:
-    """‖a - a_prev‖²."""
-    return _sq(s.action - s.action_prev)
-
-
-@reward_term
-def reg1_torque(s: StepState, p: RewardParams) -> torch.Tensor:
-    """‖tau‖², (N·m)²."""
-    return _sq(s.tau)
-
-
-@reward_term
-def reg1_joint_vel(s: StepState, p: RewardParams) -> torch.Tensor:
+def reg1_joint_vel(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """‖q_dot‖², (rad/s)²."""
-    return _sq(s.q_dot)
+    return shared.squared_norm(s.q_dot)
+
+
+reg1_joint_acc = reward_term(shared.joint_acc_sq, "reg1_joint_acc")
 
 
 @reward_term
-def reg1_joint_acc(s: StepState, p: RewardParams) -> torch.Tensor:
-    """‖q_ddot‖², (rad/s²)²."""
-    return _sq(s.q_ddot)
-
-
-@reward_term
-def reg2_power(s: StepState, p: RewardParams) -> torch.Tensor:
+def reg2_power(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """Σ_j max(tau_j q_dot_j, 0): positive mechanical power, W."""
     return torch.sum(torch.clamp(s.tau * s.q_dot, min=0.0), dim=-1)
 
 
 @reward_term
-def reg3_contact_force(s: StepState, p: RewardParams) -> torch.Tensor:
+def reg3_contact_force(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """Σ_i max(‖f_i‖ - f_tol, 0), N."""
     f = torch.linalg.vector_norm(s.f_feet_w, dim=-1)
-    return torch.sum(torch.clamp(f - p.f_tol_n, min=0.0), dim=-1)
+    return torch.sum(torch.clamp(f - c.f_tol_n, min=0.0), dim=-1)
 
 
 @reward_term
-def reg4_air_time(s: StepState, p: RewardParams) -> torch.Tensor:
+def reg4_air_time(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """Σ_i touchdown_i · max(t_air_i - t_swing_des, 0), s."""
-    excess = torch.clamp(s.t_air_s - p.t_swing_des_s, min=0.0)
+    excess = torch.clamp(s.t_air_s - c.t_swing_des_s, min=0.0)
     return torch.sum(s.touchdown.to(excess.dtype) * excess, dim=-1)
 
 
 @reward_term
-def reg5_contact_time(s: StepState, p: RewardParams) -> torch.Tensor:
+def reg5_contact_time(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """Σ_i liftoff_i · max(t_contact_des - t_contact_i, 0), s."""
-    short = torch.clamp(p.t_contact_des_s - s.t_contact_s, min=0.0)
+    short = torch.clamp(c.t_contact_des_s - s.t_contact_s, min=0.0)
     return torch.sum(s.liftoff.to(short.dtype) * short, dim=-1)
 
 
 @reward_term
-def reg6_foot_slip(s: StepState, p: RewardParams) -> torch.Tensor:
+def reg6_foot_slip(s: StepState, c: RewardsCfg) -> torch.Tensor:
     """Σ_i contact_i · ‖v_slip_p,i‖, m/s: feet in contact should not slide on the platform."""
     slip = torch.linalg.vector_norm(s.v_slip_p, dim=-1)
     return torch.sum(s.contact.to(slip.dtype) * slip, dim=-1)
@@ -176,70 +149,36 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
 }
 
 
-@functools.lru_cache(maxsize=16)
-def _weight_factors(weights: tuple[float, ...], dt_s: float, device: torch.device) -> torch.Tensor:
-    """(K, 1) float32 factors w_k · dt_s on `device`, built once: a tensor made from host numbers every
-    step would, on a GPU, wait for the device each time."""
-    return torch.tensor([[w * dt_s] for w in weights], device=device)
+@dataclass
+class RewardsCfg:
+    """`env.rewards`: a weight per term (0 skips it) and the terms' shape parameters."""
 
+    weights: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_REWARD_WEIGHTS))
+    sigma_center_m: float = 1.2  # k2, task1 length scale, m
+    sigma_alignment: float = 0.3  # k4, task2 scale of ‖u_aln‖ (mixed m/s and rad/s)
+    sigma_level_rad: float = 0.2  # k6, task3 scale of trunk roll/pitch, rad
+    sigma_height_m: float = 0.1  # k8, task4 height scale, m
+    h_des_m: float = 0.37  # desired trunk height, measured from `h_des_from`
+    # where h_des is measured from: "top" = the platform's top surface (the trunk 0.37 m above it), the
+    # paper's reading, the same as the benchmark's height metric; "centre" = the platform frame's
+    # origin, its CoM 0.1 m below the top (0.27 m above the surface): a crouch it rewards (ours, an option)
+    h_des_from: str = "top"
+    f_tol_n: float = 50.0  # contact-force tolerance per foot, N
+    t_swing_des_s: float = 0.1  # desired minimal air time, s
+    t_contact_des_s: float = 0.5  # desired minimal contact time, s
 
-class RewardManager:
-    """Sums weighted terms each step and keeps per-env episode sums per term for logging.
+    def validate(self, p: str):
+        shared.check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
+        if self.h_des_from not in ("top", "centre"):
+            raise ConfigError(f"{p}.h_des_from must be 'top' or 'centre', got {self.h_des_from!r}")
+        for f in dataclasses.fields(self):
+            if f.name not in ("weights", "h_des_from"):
+                check_positive(f"{p}.{f.name}", getattr(self, f.name))
 
-    Terms with weight 0 are skipped (never computed, not logged). Episode sums hold the
-    weighted, dt-scaled contributions, i.e. what the term added to the return.
-    """
+    def h_des_p_m(self, plf_top_m: float) -> float:
+        """h_des in the platform frame (origin at its CoM), m: what rewards and metrics compare p_body_p,z to."""
+        return self.h_des_m + (plf_top_m if self.h_des_from == "top" else 0.0)
 
-    def __init__(
-        self,
-        weights: Mapping[str, float],
-        params: RewardParams,
-        num_envs: int,
-        device: torch.device | str = "cpu",
-        registry: Mapping[str, Callable] | None = None,
-    ) -> None:
-        registry = REWARD_TERMS if registry is None else registry  # another task's terms
-        check_reward_weights(weights, registry, "weights")
-        active = [(name, float(w)) for name, w in weights.items() if float(w) != 0.0]
-        self.params = params
-        self.num_envs = num_envs
-        self.device = torch.device(device)
-        self.term_names: list[str] = [n for n, _ in active]
-        self._fns = [registry[n] for n in self.term_names]
-        self._weights = [w for _, w in active]
-        self._episode_sums = torch.zeros(len(active), num_envs, device=self.device)
-
-    def compute(self, state: StepState) -> torch.Tensor:
-        """Total reward Σ_k w_k · term_k · dt_s, shape (num_envs,)."""
-        if not self._fns:
-            return torch.zeros(self.num_envs, device=self.device)
-        # all terms as one (K, n) stack: three array operations for the weighting, the episode sums
-        # and the total instead of three per term, with the same values (w_k · dt_s is rounded to
-        # float32 as a scalar factor was; checked bit for bit on a seeded 400-step rollout)
-        factors = _weight_factors(tuple(self._weights), state.dt_s, self.device)
-        weighted = torch.stack([fn(state, self.params) for fn in self._fns]) * factors
-        self._episode_sums += weighted
-        return weighted.sum(dim=0)
-
-    def state_dict(self) -> dict:
-        """The running episode sums per term (a resume continues them)."""
-        return {"term_names": list(self.term_names), "episode_sums": self._episode_sums}
-
-    def load_state_dict(self, d: dict) -> None:
-        if list(d["term_names"]) != self.term_names or tuple(d["episode_sums"].shape) != tuple(self._episode_sums.shape):
-            raise ValueError(f"saved reward sums are for terms {list(d['term_names'])} x {tuple(d['episode_sums'].shape)}, "
-                             f"this manager has {self.term_names} x {tuple(self._episode_sums.shape)}")  # fmt: skip
-        self._episode_sums = d["episode_sums"].to(self.device).clone()
-
-    def reset(self, env_ids: torch.Tensor | Sequence[int] | None = None) -> dict[str, float]:
-        """Mean episode sum per term over `env_ids` (all envs if None), then zero them."""
-        if env_ids is None:
-            env_ids = torch.arange(self.num_envs, device=self.device)
-        elif not isinstance(env_ids, torch.Tensor):
-            env_ids = torch.as_tensor(env_ids, dtype=torch.long, device=self.device)
-        if env_ids.numel() == 0 or not self.term_names:
-            return {}
-        sums = self._episode_sums[:, env_ids]
-        means = sums.mean(dim=1).tolist()  # one device sync for all terms
-        self._episode_sums[:, env_ids] = 0.0
-        return dict(zip(self.term_names, means, strict=True))
+    def in_platform_frame(self, plf_top_m: float) -> RewardsCfg:
+        """The same config with h_des measured from the platform frame's origin: what the terms read."""
+        return dataclasses.replace(self, h_des_m=self.h_des_p_m(plf_top_m), h_des_from="centre")

@@ -1,9 +1,9 @@
 """The R-S baseline's env config (locomotion on static rough terrain): `RoughStaticCfg` and its parts
 (terrain, commands, pushes, rewards, termination), on top of the shared `lasmp.config.BaseEnvCfg`.
 
-Hydra registers it as the `env` option `rough_static` (`lasmp/train_cfg.py`). This module imports
-the reward terms' registry (to check weight names), never the env: `lasmp.envs.rough_static.env`
-imports this module.
+Hydra registers it as the `env` option `rough_static` (`lasmp/train_cfg.py`, from the task registry
+`lasmp/envs/registry.py`). The rewards' entry, `RoughRewardsCfg`, lives with the terms that read it
+(`rewards.py`). This module never imports the env: `lasmp.envs.rough_static.env` imports it.
 """
 
 from __future__ import annotations
@@ -19,8 +19,7 @@ from lasmp.config import (
     check_positive,
     check_range,
 )
-from lasmp.envs.reward_registry import check_reward_weights
-from lasmp.envs.rough_static.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_TERMS
+from lasmp.envs.rough_static.rewards import RoughRewardsCfg
 
 
 @dataclass
@@ -87,18 +86,6 @@ class PushCfg:
         if self.interval_s[0] <= 0:
             raise ConfigError(f"{p}.interval_s must be > 0, got {list(self.interval_s)}")
         check_positive(f"{p}.max_mps", self.max_mps, allow_zero=True)
-
-
-@dataclass
-class RoughRewardsCfg:
-    weights: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_REWARD_WEIGHTS))
-    tracking_sigma: float = 0.25
-    air_time_target_s: float = 0.5
-
-    def validate(self, p: str):
-        check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
-        check_positive(f"{p}.tracking_sigma", self.tracking_sigma)
-        check_positive(f"{p}.air_time_target_s", self.air_time_target_s, allow_zero=True)
 
 
 @dataclass

@@ -29,19 +29,21 @@ import numpy as np
 import torch
 from tensordict import TensorDict
 
-from lasmp.config import build_env_cfg
 from lasmp.envs.base_env import BaseEnv, column_runs
-from lasmp.envs.moving_platform.domain_rand import Intrinsics, nominal_intrinsics, sample_intrinsics
-from lasmp.envs.moving_platform.rewards import RewardManager
+from lasmp.envs.rewards import RewardManager
 from lasmp.envs.robot import (
     OBS_DIM,
+    Intrinsics,
     RobotIndex,
     RobotIntrinsicsWriter,
     RobotReadout,
     as_slice,
+    nominal_intrinsics,
     proprioception,
     read_robot,
+    sample_intrinsics,
     screen_faults,
+    step_gait_phase,
     update_rows,
 )
 from lasmp.envs.rotations import yaw_quat
@@ -54,11 +56,10 @@ SPAWN_FOOTPRINT_M = 0.4  # half-side of the square under the robot searched for 
 
 
 class RoughStaticEnv(BaseEnv):
-    def __init__(self, cfg: RoughStaticCfg | dict | None = None, device="cpu"):
-        if not isinstance(cfg, RoughStaticCfg):
-            cfg = build_env_cfg(cfg, schema=RoughStaticCfg)
-        else:
-            cfg.validate()
+    cfg_class = RoughStaticCfg
+
+    def __init__(self, cfg: RoughStaticCfg, device="cpu"):
+        self.check_cfg(cfg)
         model, self.terrain = build_model(cfg.terrain, cfg.sim)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
         super().__init__(cfg, model, 12, int(round(cfg.episode_length_s / dt_s)), device)
@@ -76,20 +77,15 @@ class RoughStaticEnv(BaseEnv):
             {"policy": OBS_DIM, "priv_explicit": 13, "priv_implicit": self.x_imp.shape[1], "command": 3},
             whole="critic",
         )
-        rc = cfg.rewards
-        self.rewards = RewardManager(
-            rc.weights,
-            rw.RoughRewardParams(rc.tracking_sigma, rc.air_time_target_s),
-            n,
-            device=dev,
-            registry=rw.REWARD_TERMS,
-        )
+        self.rewards = RewardManager(rw.REWARD_TERMS, cfg.rewards.weights, cfg.rewards, n, device=dev)
 
         zeros = lambda *shape: torch.zeros((n, *shape), dtype=self.dtype, device=dev)  # noqa: E731
         self.command = zeros(3)
         self.command_time_left_s = zeros()
         self.push_time_left_s = zeros()
-        self.pushed = torch.zeros(n, dtype=torch.bool, device=dev)  # envs pushed at the start of the last step
+        self.pushed = torch.zeros(
+            n, dtype=torch.bool, device=dev
+        )  # envs pushed at the start of the last step
         self.push_dv_mps = zeros(2)  # their added world-frame xy velocity
         self.action = zeros(12)
         self.action_prev = zeros(12)
@@ -147,12 +143,7 @@ class RoughStaticEnv(BaseEnv):
         tilted = (torch.abs(r.phi_body_w[:, :2]) > self.cfg.termination.max_tilt_rad).any(dim=1)
         fell = r.body_collision | tilted
         dt = self.dt_s
-        contact = r.foot_contact
-        touchdown = contact & ~self.contact_prev
-        self.t_air_s += dt * (~contact).to(self.dtype)
-        t_air_ended = torch.where(touchdown, self.t_air_s, 0.0)
-        self.t_air_s.masked_fill_(contact, 0.0)
-        self.contact_prev = contact
+        gait = step_gait_phase(r.foot_contact, self.contact_prev, self.t_air_s, None, dt)
         f32 = torch.float32  # rewards are computed in float32 on every backend
         state = rw.RoughStepState(
             dt_s=dt,
@@ -166,8 +157,8 @@ class RoughStaticEnv(BaseEnv):
             action=self.action.to(f32),
             action_prev=self.action_prev.to(f32),
             body_contact=r.body_collision.clone(),
-            touchdown=touchdown,
-            t_air_s=t_air_ended.to(f32),
+            touchdown=gait.touchdown,
+            t_air_s=gait.t_air_s.to(f32),
         )
         self.last_state = state
         reward = self.rewards.compute(state)
@@ -209,13 +200,17 @@ class RoughStaticEnv(BaseEnv):
         ix = self.index
         qpos = self.qpos0.repeat(n, 1)
         qpos[:, ix.root_qpos : ix.root_qpos + 2] = self.tensor(xy)
-        qpos[:, ix.root_qpos + 2] = self.tensor(ground + self.trunk_height_m + self.cfg.init_state.foot_clearance_m)
+        qpos[:, ix.root_qpos + 2] = self.tensor(
+            ground + self.trunk_height_m + self.cfg.init_state.foot_clearance_m
+        )
         qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(self.tensor(yaw))
         qpos[:, ix.joint_qpos] = self.q_nominal
         m = self.sim.model
         ctrl = torch.zeros((n, m.nu), dtype=self.dtype, device=self.device)
         ctrl[:, ix.joint_act] = self.q_nominal
-        self.sim.reset(ids, qpos, torch.zeros((n, m.nv), dtype=self.dtype, device=self.device), ctrl, set_const=True)
+        self.sim.reset(
+            ids, qpos, torch.zeros((n, m.nv), dtype=self.dtype, device=self.device), ctrl, set_const=True
+        )
 
         self._resample_commands(ids)
         self.push_time_left_s[ids] = self.tensor(self.rng.uniform(*self.cfg.pushes.interval_s, size=n))
@@ -231,16 +226,41 @@ class RoughStaticEnv(BaseEnv):
             self.readout = read_robot(self.sim, self.index)  # reset envs: their new state (one pass)
         r = self.readout
         o = proprioception(r, self.action, self.q_nominal)
-        static = torch.zeros((self.num_envs, 6), dtype=self.dtype, device=self.device)  # x_exp: a still ground
+        static = torch.zeros(
+            (self.num_envs, 6), dtype=self.dtype, device=self.device
+        )  # x_exp: a still ground
         height = r.p_body_w[:, 2] - self.terrain.height_at(r.p_body_w[:, :2])
         critic = torch.cat(
-            [o, r.foot_contact.to(self.dtype), r.v_body_b, static, self.x_imp, self.command, height[:, None],
-             r.phi_body_w], dim=1,
-        )  # fmt: skip
+            [
+                o,
+                r.foot_contact.to(self.dtype),
+                r.v_body_b,
+                static,
+                self.x_imp,
+                self.command,
+                height[:, None],
+                r.phi_body_w,
+            ],
+            dim=1,
+        )
         return self._package_observations(critic, self.obs_columns)
 
     # -- checkpoint state (nothing: no curriculum) ---------------------------------------------
-    TASK_STATE = ("command", "command_time_left_s", "push_time_left_s", "pushed", "push_dv_mps", "action",
-                  "action_prev", "q_dot_prev", "contact_prev", "t_air_s", "intrinsics", "x_imp", "rewards", "readout",
-                  "last_state")  # fmt: skip
+    TASK_STATE = (
+        "command",
+        "command_time_left_s",
+        "push_time_left_s",
+        "pushed",
+        "push_dv_mps",
+        "action",
+        "action_prev",
+        "q_dot_prev",
+        "contact_prev",
+        "t_air_s",
+        "intrinsics",
+        "x_imp",
+        "rewards",
+        "readout",
+        "last_state",
+    )
     RUN_STATE_CLASSES = (rw.RoughStepState, RobotReadout)

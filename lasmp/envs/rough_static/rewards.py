@@ -1,9 +1,10 @@
 """Reward terms of the R-S baseline (locomotion on static rough terrain), legged_gym-style.
 
-A registry of small pure functions, weights as data, summed and logged per episode by the
-moving-platform `RewardManager` (given this module's `REWARD_TERMS`). Each term returns its
-UNWEIGHTED value (num_envs,); the sign lives in the weight; every weighted term is
-multiplied by dt_s in the manager.
+A registry of small pure functions and their config entry `RoughRewardsCfg` (the weights and
+the terms' shape parameters, declared once: the terms read it), summed and logged per episode
+by the shared `lasmp.envs.rewards.RewardManager`. Each term returns its UNWEIGHTED value
+(num_envs,); the sign lives in the weight; every weighted term is multiplied by dt_s in the
+manager.
 
     track_lin_vel_xy   exp(-‖v_cmd,xy - v_b,xy‖² / sigma)          +1.0
     track_ang_vel_z    exp(-(w_cmd - w_b,z)² / sigma)              +0.5
@@ -26,20 +27,12 @@ body_contact also terminates the episode, so it fires on the fall's last step on
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import torch
 
-from lasmp.envs.reward_registry import make_registry, squared_norm
-
-
-@dataclass
-class RoughRewardParams:
-    """Shape parameters of the reward terms (not weights)."""
-
-    tracking_sigma: float = 0.25  # (m/s)² and (rad/s)²
-    air_time_target_s: float = 0.5
+from lasmp.config import check_positive
+from lasmp.envs import rewards as shared
 
 
 @dataclass
@@ -61,11 +54,10 @@ class RoughStepState:
     t_air_s: torch.Tensor  # (n, 4) length of the air phase that ended at touchdown, s
 
 
-RoughRewardFn = Callable[[RoughStepState, RoughRewardParams], torch.Tensor]
-REWARD_TERMS, reward_term = make_registry()  # name -> RoughRewardFn
+REWARD_TERMS, reward_term = shared.make_registry()  # name -> fn(RoughStepState, RoughRewardsCfg)
 
 
-_sq = squared_norm
+_sq = shared.squared_norm
 
 
 def _moving(s: RoughStepState) -> torch.Tensor:
@@ -73,58 +65,48 @@ def _moving(s: RoughStepState) -> torch.Tensor:
 
 
 @reward_term
-def track_lin_vel_xy(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
-    return torch.exp(-_sq(s.command[:, :2] - s.v_body_b[:, :2]) / p.tracking_sigma)
+def track_lin_vel_xy(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+    return torch.exp(-_sq(s.command[:, :2] - s.v_body_b[:, :2]) / c.tracking_sigma)
 
 
 @reward_term
-def track_ang_vel_z(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
-    return torch.exp(-torch.square(s.command[:, 2] - s.omega_body_b[:, 2]) / p.tracking_sigma)
+def track_ang_vel_z(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+    return torch.exp(-torch.square(s.command[:, 2] - s.omega_body_b[:, 2]) / c.tracking_sigma)
 
 
 @reward_term
-def lin_vel_z(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+def lin_vel_z(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
     return torch.square(s.v_body_b[:, 2])
 
 
 @reward_term
-def ang_vel_xy(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+def ang_vel_xy(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
     return _sq(s.omega_body_b[:, :2])
 
 
-@reward_term
-def torques(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
-    return _sq(s.tau)
+torques = reward_term(shared.torque_sq, "torques")
+joint_acc = reward_term(shared.joint_acc_sq, "joint_acc")
+action_rate = reward_term(shared.action_rate_sq, "action_rate")
 
 
 @reward_term
-def joint_acc(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
-    return _sq(s.q_ddot)
-
-
-@reward_term
-def action_rate(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
-    return _sq(s.action - s.action_prev)
-
-
-@reward_term
-def body_contact(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+def body_contact(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
     return s.body_contact.to(s.v_body_b.dtype)
 
 
 @reward_term
-def orientation(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+def orientation(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
     return _sq(s.gravity_b[:, :2])
 
 
 @reward_term
-def feet_air_time(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
-    paid = s.touchdown.to(s.t_air_s.dtype) * (s.t_air_s - p.air_time_target_s)
+def feet_air_time(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+    paid = s.touchdown.to(s.t_air_s.dtype) * (s.t_air_s - c.air_time_target_s)
     return torch.sum(paid, dim=-1) * _moving(s)
 
 
 @reward_term
-def stand_still(s: RoughStepState, p: RoughRewardParams) -> torch.Tensor:
+def stand_still(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
     return torch.sum(torch.abs(s.q_dev), dim=-1) * (1.0 - _moving(s))
 
 
@@ -141,3 +123,17 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
     "feet_air_time": 1.0,
     "stand_still": -0.1,
 }
+
+
+@dataclass
+class RoughRewardsCfg:
+    """`env.rewards`: a weight per term (0 skips it) and the terms' shape parameters."""
+
+    weights: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_REWARD_WEIGHTS))
+    tracking_sigma: float = 0.25  # (m/s)² and (rad/s)²
+    air_time_target_s: float = 0.5
+
+    def validate(self, p: str):
+        shared.check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
+        check_positive(f"{p}.tracking_sigma", self.tracking_sigma)
+        check_positive(f"{p}.air_time_target_s", self.air_time_target_s, allow_zero=True)

@@ -1,6 +1,6 @@
 """The static rough-terrain world of the R-S baseline, built in code with `mujoco.MjSpec`.
 
-World = our A1 (its MJCF is the base spec, as in `lasmp.envs.scene`) + one heightfield shared
+World = our A1 (`lasmp.envs.robot_spec`: its MJCF, options, sensors) + one heightfield shared
 by every env. The ground is generated from `TerrainCfg.seed`:
 - the field is cut into square tiles; each tile is rough ground only, a gentle pyramid slope
   (0 at the tile border, peak <= `feature_height_m` at its centre) or a low square step
@@ -10,10 +10,8 @@ by every env. The ground is generated from `TerrainCfg.seed`:
 
 Heightfield layout (MuJoCo): the geom sits at the origin, the grid spans
 [-L_x/2, L_x/2] x [-L_y/2, L_y/2]; row r is y, column c is x; ground height = geom z +
-size_z * data[r, c] with data in [0, 1]. The robot's collision geoms (contype 1) touch the
-ground (contype 0, conaffinity 1); the feet keep contact priority so their randomized
-friction decides their contacts. Sensors are the robot part of the moving-platform scene:
-foot contacts (found + net force) and one contact sensor per non-foot body.
+size_z * data[r, c] with data in [0, 1]. The ground is contype 0, conaffinity 1, as the robot's
+contacts want it; the sensors are the robot's only.
 """
 
 from __future__ import annotations
@@ -26,8 +24,8 @@ import torch
 from scipy.ndimage import uniform_filter
 
 from lasmp.config import SimCfg
+from lasmp.envs.robot_spec import add_robot_sensors, robot_spec
 from lasmp.envs.rough_static.cfg import TerrainCfg
-from lasmp.robots import a1
 
 HFIELD_NAME = "terrain"
 
@@ -105,19 +103,7 @@ def generate_heights(cfg: TerrainCfg) -> np.ndarray:
 
 
 def build_spec(terrain: TerrainCfg, sim: SimCfg) -> tuple[mujoco.MjSpec, Heightfield]:
-    spec = mujoco.MjSpec.from_file(str(a1.MJCF_PATH))
-    spec.modelname = "lasmp_rough_static"
-    spec.option.timestep = sim.dt_s
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.option.iterations = sim.solver_iterations
-    spec.option.tolerance = sim.solver_tolerance
-    spec.option.ls_iterations = max(5, sim.solver_iterations // 2)
-    spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{sim.cone.upper()}")
-    spec.option.impratio = sim.impratio
-    spec.option.noslip_iterations = sim.noslip_iterations
-    world = spec.worldbody
-    world.add_light(pos=[0, 0, 12], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
-
+    spec = robot_spec(sim, "lasmp_rough_static")
     heights = generate_heights(terrain)
     hf = Heightfield(heights, terrain.resolution_m)
     top = max(float(heights.max()), 1e-3)
@@ -128,7 +114,7 @@ def build_spec(terrain: TerrainCfg, sim: SimCfg) -> tuple[mujoco.MjSpec, Heightf
         ncol=hf.ncol,
         userdata=(heights / top).ravel().tolist(),  # already in [0, 1]: MuJoCo's normalization is a no-op
     )
-    world.add_geom(
+    spec.worldbody.add_geom(
         name=HFIELD_NAME,
         type=mujoco.mjtGeom.mjGEOM_HFIELD,
         hfieldname=HFIELD_NAME,
@@ -137,27 +123,7 @@ def build_spec(terrain: TerrainCfg, sim: SimCfg) -> tuple[mujoco.MjSpec, Heightf
         friction=[terrain.friction, 0.005, 0.0001],
         rgba=[0.45, 0.5, 0.45, 1.0],
     )
-    for leg in a1.LEG_NAMES:
-        spec.geom(f"{leg}_foot").priority = 1
-
-    found = 1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)
-    force = 1 << int(mujoco.mjtConDataField.mjCONDATA_FORCE)
-    for leg in a1.LEG_NAMES:
-        s = spec.add_sensor(
-            name=f"{leg}_foot_contact",
-            type=mujoco.mjtSensor.mjSENS_CONTACT,
-            objtype=mujoco.mjtObj.mjOBJ_GEOM,
-            objname=f"{leg}_foot",
-        )
-        s.intprm = [found | force, 3, 1]  # reduce="netforce"
-    for name in a1.NON_FOOT_COLLISION_GEOMS:  # body1=name: that body's geoms (feet are bodies of their own)
-        s = spec.add_sensor(
-            name=f"{name}_collision",
-            type=mujoco.mjtSensor.mjSENS_CONTACT,
-            objtype=mujoco.mjtObj.mjOBJ_BODY,
-            objname=name,
-        )
-        s.intprm = [found, 0, 1]
+    add_robot_sensors(spec)
     return spec, hf
 
 

@@ -1,4 +1,4 @@
-"""6-DoF platform reference trajectories (SPEC §4): generation, evaluation, files, statistics.
+"""6-DoF platform reference trajectories (docs/trajectories.md): generation, evaluation, files, statistics.
 
 Pose
     Everywhere a pose is ``[x, y, z, roll, pitch, yaw]`` (m, m, m, rad, rad, rad): the platform's

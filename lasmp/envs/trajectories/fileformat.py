@@ -234,8 +234,9 @@ def load(path) -> PiecewisePoly:
     err = TrajectoryFileError
     if _text(get, path, "format", err) != FORMAT_NAME:
         raise err(f"{path}: format is {_text(get, path, 'format', err)!r}, expected {FORMAT_NAME!r}")
-    check_version(get, path, FORMAT_VERSION, err,
-                  "Regenerate it with `python -m lasmp.envs.trajectories generate`.")  # fmt: skip
+    check_version(
+        get, path, FORMAT_VERSION, err, "Regenerate it with `python -m lasmp.envs.trajectories generate`."
+    )
     kind = _text(get, path, "kind", err)
     if kind == "waypoints":
         traj = waypoints_from_arrays(get, path, err)

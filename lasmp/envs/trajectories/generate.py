@@ -1,6 +1,6 @@
-"""Generated trajectory sets (SPEC §4): the waypoint ranges of each split, and :func:`sample`.
+"""Generated trajectory sets (docs/trajectories.md): the waypoint ranges of each split, and :func:`sample`.
 
-A generated trajectory is N waypoints drawn uniformly in the split's ranges (SPEC Table B), over
+A generated trajectory is N waypoints drawn uniformly in the split's ranges (the paper's Table B, docs/environment.md), over
 T = ``duration_s``; the nominal time of waypoint k is ``k T / N``. The waypoints, with the initial
 pose (zeros) as knot 0 at t = 0, become a spline by the construction of a :class:`SplineSpec`
 (:mod:`lasmp.envs.trajectories.splines`; default: the approximating B-spline of degree 10).
@@ -46,7 +46,7 @@ TEST_RANGES = TrajectoryRanges(n_waypoints_min=4, n_waypoints_max=16)
 
 
 def ranges_for_split(split: str) -> TrajectoryRanges:
-    """Ranges of the "train" or "test" split (SPEC Table B)."""
+    """Ranges of the "train" or "test" split (the paper's Table B, docs/environment.md)."""
     if split == "train":
         return TRAIN_RANGES
     if split == "test":

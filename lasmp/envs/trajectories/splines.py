@@ -3,7 +3,7 @@
 Generated sets (:func:`lasmp.envs.trajectories.generate.sample`) use one of two constructions,
 chosen by :class:`SplineSpec`:
 
-* ``"approximating"`` (default, SPEC §4): the waypoints are the *control points* of a clamped
+* ``"approximating"`` (default, docs/trajectories.md): the waypoints are the *control points* of a clamped
   uniform B-spline (``scipy.interpolate.BSpline``) of degree ``degree`` (default 10), lowered
   to (control points - 1) when there are fewer. The control polygon is
   ``[0, 0, 0, w_1, ..., w_N, w_N, w_N]``: the initial pose and the last waypoint are each
@@ -15,7 +15,7 @@ chosen by :class:`SplineSpec`:
   degree + 1); the waypoints' nominal times ``k T / N`` are stored, but only T is used.
   Why degree 10 and tripled ends: on the testing split (10,000 draws, seed 0) they give a
   mean path length of 6.90 m and mean speed of 0.690 m/s, the closest to the paper's 7.12 m and
-  0.69 m/s; degrees 5 / 7 / 9 / 11 give 10.41 / 8.53 / 7.34 / 6.53 m (README, "Trajectories").
+  0.69 m/s; degrees 5 / 7 / 9 / 11 give 10.41 / 8.53 / 7.34 / 6.53 m (docs/trajectories.md, "Why degree 10").
 * ``"interpolating"`` (the harder, non-default reading): a cubic spline *through* the initial
   pose at t = 0 and the waypoints at ``t_k = k T / N`` (``scipy.interpolate.make_interp_spline``)
   with clamped ends (zero velocity at 0 and T). C2 inside; mean path length 23.7 m.
@@ -122,8 +122,17 @@ def _build_group(kind: int, degree: int, times: np.ndarray, poses: np.ndarray):
 # --------------------------------------------------------------------------------------------
 # The representation
 # --------------------------------------------------------------------------------------------
-_ROW_FIELDS = ("knot_times_s", "knot_poses", "n_knots", "kind", "degree", "n_waypoints",
-               "breaks_s", "n_segments", "coeffs")  # fmt: skip
+_ROW_FIELDS = (
+    "knot_times_s",
+    "knot_poses",
+    "n_knots",
+    "kind",
+    "degree",
+    "n_waypoints",
+    "breaks_s",
+    "n_segments",
+    "coeffs",
+)
 
 
 @dataclass
@@ -236,8 +245,18 @@ class PiecewisePoly:
             self.breaks_s,
             self.coeffs,
         )
-        return PiecewisePoly(t, p, self.n_knots.copy(), self.kind.copy(), self.degree.copy(),
-                             self.n_waypoints.copy(), b, self.n_segments.copy(), c, dict(self.meta))  # fmt: skip
+        return PiecewisePoly(
+            t,
+            p,
+            self.n_knots.copy(),
+            self.kind.copy(),
+            self.degree.copy(),
+            self.n_waypoints.copy(),
+            b,
+            self.n_segments.copy(),
+            c,
+            dict(self.meta),
+        )
 
     def replace_rows(self, rows, other: PiecewisePoly) -> None:
         """In place: rows of self get other's rows (len(other) == len(rows)); pads axes as needed."""

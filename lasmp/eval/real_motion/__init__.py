@@ -1,6 +1,7 @@
-"""Real-motion test suite: physically modelled platform motions (ship, bus, train, lift, aircraft).
+"""The real-motion suite: named vehicle scenarios played as a benchmark, their results and figures.
 
-`motion` (the Motion type, deck-point kinematics, file conversion), one module per generator,
-`suite` (the named scenarios, episodes and results). CLI: ``python -m lasmp.eval.real_motion --help``;
-evaluation: ``python evaluate.py --suite real_motion ...``.
+The motions themselves are trajectory sources in :mod:`lasmp.motions` (ship, bus, rail, lift,
+aircraft); here are `suite` (the scenarios, episodes, platform drive and results tables) and
+`plots`. CLI: ``python -m lasmp.eval.real_motion --help``; evaluation: ``python evaluate.py --suite
+real_motion ...``. How to run it and what it measured: docs/real_motion.md.
 """

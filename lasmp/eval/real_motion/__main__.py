@@ -9,8 +9,8 @@ from pathlib import Path
 
 from lasmp.envs import trajectories as trj
 from lasmp.eval.real_motion import suite as rm
-from lasmp.eval.real_motion.motion import to_trajectories
 from lasmp.eval.real_motion.plots import plot_all
+from lasmp.motions.motion import to_trajectories
 
 
 def main(argv=None) -> int:

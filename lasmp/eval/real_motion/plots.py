@@ -6,7 +6,7 @@ from pathlib import Path
 
 from lasmp.atomic import atomic_write_with
 from lasmp.envs import trajectories as trj
-from lasmp.eval.real_motion.motion import Motion, derivatives
+from lasmp.motions.motion import Motion, derivatives
 
 
 def plot_motion(m: Motion, path: Path) -> None:

@@ -2,9 +2,9 @@
 
 Scenarios (:data:`SCENARIOS`): ship decks in four sea states (WMO codes 3-6), a city bus
 (stop-and-go, emergency brake), a train (curve, straight), a lift (up, down, emergency stop) and an
-aircraft in light, moderate and severe turbulence, each a :class:`~lasmp.eval.real_motion.motion.Motion` of
-:data:`~lasmp.eval.real_motion.motion.DEFAULT_DURATION_S` from its generator with seed 0 (one
-realisation per scenario, the same for every controller).
+aircraft in light, moderate and severe turbulence, each a :class:`~lasmp.motions.motion.Motion` of
+:data:`~lasmp.motions.motion.DEFAULT_DURATION_S` from its generator in :mod:`lasmp.motions` with
+seed 0 (one realisation per scenario, the same for every controller).
 
 Episodes (:class:`SuiteEpisodes`): every scenario is played with the first R robots of Xi_eval
 (default R = 64, testing intrinsics): episode k plays scenario k // R with robot k % R. So every
@@ -13,8 +13,8 @@ controller meets the same (scenario, robot) pairs, as on the benchmark.
 The platform drive (:data:`PLATFORM_DRIVES`). The suite asks whether a policy survives the motion
 a real vehicle makes, so by default (``close``) the platform follows its reference closely: a 4 Hz
 drive (omega_n = 25.13 rad/s at gain factor 1) with velocity feedforward, on an 800 kg platform
-(the robot's weight sags it 0.2 mm). Measured with Stand Still and benchmark robot 0 (README
-"Real-motion suite"): RMS tracking error 0.5-5.5 mm, RMS acceleration within 3.2 % of the reference's
+(the robot's weight sags it 0.2 mm). Measured with Stand Still and benchmark robot 0
+(docs/real_motion.md): RMS tracking error 0.5-5.5 mm, RMS acceleration within 3.2 % of the reference's
 (7 % for the lift's emergency stop). The paper's world (``paper``) drives the platform through a
 1 rad/s position servo: it halves the ship's and the aircraft's RMS acceleration, keeps 2 % of the
 train's track vibration and 27 % of the lift's emergency stop, and lags a cruising bus or train
@@ -33,9 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from lasmp.envs import trajectories as trj
-from lasmp.envs.moving_platform.domain_rand import Intrinsics
+from lasmp.envs.robot import Intrinsics
 from lasmp.eval.metrics import METRICS, summarize
-from lasmp.eval.real_motion.motion import Motion, derivatives, to_trajectories
+from lasmp.motions.motion import Motion, derivatives, to_trajectories
 
 SUITE_NAME = "real_motion"
 DEFAULT_ROBOTS_PER_SCENARIO = 64
@@ -43,10 +43,10 @@ NUM_BATCHES = 8  # per scenario: mean +- std over 8 consecutive batches of robot
 
 
 def _variant(module: str, function: str, variant: str) -> Callable[[], Motion]:
-    """`lasmp.eval.real_motion.<module>.<function>(variant)`, imported when the scenario is built."""
+    """`lasmp.motions.<module>.<function>(variant)`, imported when the scenario is built."""
 
     def make() -> Motion:
-        return getattr(importlib.import_module(f"lasmp.eval.real_motion.{module}"), function)(variant)
+        return getattr(importlib.import_module(f"lasmp.motions.{module}"), function)(variant)
 
     return make
 
@@ -58,8 +58,8 @@ SCENARIOS: dict[str, Callable[[], Motion]] = {
     "ship_sea_state_6": _variant("ship", "ship_deck", "sea_state_6"),
     "bus_stop_and_go": _variant("bus", "city_bus", "stop_and_go"),
     "bus_emergency_brake": _variant("bus", "city_bus", "emergency_brake"),
-    "train_curve": _variant("train", "train", "curve"),
-    "train_straight": _variant("train", "train", "straight"),
+    "train_curve": _variant("rail", "train", "curve"),
+    "train_straight": _variant("rail", "train", "straight"),
     "lift_up": _variant("lift", "lift", "up"),
     "lift_down": _variant("lift", "lift", "down"),
     "lift_emergency_stop": _variant("lift", "lift", "emergency_stop"),
@@ -68,7 +68,7 @@ SCENARIOS: dict[str, Callable[[], Motion]] = {
     "aircraft_severe": _variant("aircraft", "aircraft", "severe"),
 }
 
-# env.platform overrides per drive (README "Real-motion suite")
+# env.platform overrides per drive (docs/real_motion.md, "The platform drive")
 PLATFORM_DRIVES: dict[str, dict] = {
     "close": {"omega_n_rad_s": 25.13, "velocity_feedforward": True, "mass_kg": 800.0},
     "paper": {},
@@ -221,6 +221,8 @@ def platform_tracking(episodes: SuiteEpisodes, env_overrides_: dict) -> dict[str
     per scenario, until its first episode ends. RMS of the translational acceleration (second
     differences of the positions at the policy rate) of the platform and of its reference, and RMS
     tracking errors (translation m, rotation rad as the norm of the three joint angles)."""
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.eval.run import BenchmarkSource
     from lasmp.eval.tracking import record_platform
@@ -231,7 +233,7 @@ def platform_tracking(episodes: SuiteEpisodes, env_overrides_: dict) -> dict[str
         episodes.names,
     )
     n = len(episodes.names)
-    env = MovingPlatformEnv({**env_overrides_, "num_envs": n})
+    env = MovingPlatformEnv(build_env_cfg({**env_overrides_, "num_envs": n}, schema=MovingPlatformCfg))
     env.episode_source = BenchmarkSource(one_robot, n, n)
     env.reset()
     rec = record_platform(env)

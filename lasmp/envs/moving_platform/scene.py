@@ -1,6 +1,6 @@
 """The moving-platform world, built in code with `mujoco.MjSpec`.
 
-World = our A1 (attached from its MJCF) + a 2 x 2 x 0.2 m box platform on six actuated
+World = our A1 (`lasmp.envs.robot_spec`: its MJCF, options, sensors) + a 2 x 2 x 0.2 m box platform on six actuated
 joints. The platform chain is slide x, y, z (world axes), then hinge yaw (z), pitch (y),
 roll (x), so its joint angles are ZYX Euler angles: R_wp = Rz(yaw) Ry(pitch) Rx(roll), the
 convention of `lasmp.envs.trajectories`. Every platform joint is driven by a PD made of two
@@ -22,6 +22,7 @@ import numpy as np
 
 from lasmp.config import SimCfg
 from lasmp.envs.moving_platform.cfg import PlatformCfg
+from lasmp.envs.robot_spec import add_robot_sensors, robot_spec
 from lasmp.robots import a1
 
 PLATFORM_JOINTS = ("plf_x", "plf_y", "plf_z", "plf_yaw", "plf_pitch", "plf_roll")
@@ -36,8 +37,6 @@ _JOINT_AXES = {
     "plf_pitch": [0, 1, 0],
     "plf_roll": [1, 0, 0],
 }
-# bodies whose contacts are collisions: the A1's links carry one collision geom each, named as the body
-NON_FOOT_BODIES = a1.NON_FOOT_COLLISION_GEOMS
 
 
 @dataclass(frozen=True)
@@ -65,7 +64,9 @@ def platform_gains(cfg: PlatformCfg) -> PlatformGains:
 
 def platform_actuator_ids(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     """Ids of the platform's position servos and of its velocity (damping) actuators, PLATFORM_JOINTS order."""
-    return tuple(np.array([model.actuator(f"{j}_{kind}").id for j in PLATFORM_JOINTS]) for kind in ("pos", "vel"))
+    return tuple(
+        np.array([model.actuator(f"{j}_{kind}").id for j in PLATFORM_JOINTS]) for kind in ("pos", "vel")
+    )
 
 
 def platform_top_z_m(cfg: PlatformCfg) -> float:
@@ -74,26 +75,12 @@ def platform_top_z_m(cfg: PlatformCfg) -> float:
 
 
 def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
-    # the robot's own MJCF is the base spec; the platform is added to its world (no attach, so
-    # names stay as the robot file has them)
-    spec = mujoco.MjSpec.from_file(str(a1.MJCF_PATH))
-    spec.modelname = "lasmp_moving_platform"
-    spec.option.timestep = sim.dt_s
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST  # stiff platform PD, implicit damping
-    spec.option.iterations = sim.solver_iterations
-    spec.option.tolerance = sim.solver_tolerance
-    spec.option.ls_iterations = max(5, sim.solver_iterations // 2)
-    spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{sim.cone.upper()}")
-    spec.option.impratio = sim.impratio
-    spec.option.noslip_iterations = sim.noslip_iterations
+    spec = robot_spec(sim, "lasmp_moving_platform")
     spec.visual.global_.offwidth = 1280
     spec.visual.global_.offheight = 720
 
-    world = spec.worldbody
-    world.add_light(pos=[0, 0, 12], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
-
     gains = platform_gains(platform)
-    body = world.add_body(name="platform", gravcomp=1.0)
+    body = spec.worldbody.add_body(name="platform", gravcomp=1.0)
     for name in PLATFORM_JOINTS:
         slide = name in ("plf_x", "plf_y", "plf_z")
         kind = mujoco.mjtJoint.mjJNT_SLIDE if slide else mujoco.mjtJoint.mjJNT_HINGE
@@ -119,29 +106,15 @@ def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
         vel = spec.add_actuator(name=f"{name}_vel", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         vel.set_to_velocity(kv=kd * platform.kd_factor_ref)  # nominal; the env writes per-env gains
 
-    for leg in a1.LEG_NAMES:  # a foot's friction (randomized) decides its contacts, not the platform's
-        spec.geom(f"{leg}_foot").priority = 1
-
-    def sensor(name, stype, objtype, objname):
-        return spec.add_sensor(name=name, type=stype, objtype=objtype, objname=objname)
-
-    site = mujoco.mjtObj.mjOBJ_SITE
-    sensor("plf_linvel", mujoco.mjtSensor.mjSENS_FRAMELINVEL, site, "platform_centre")
-    sensor("plf_angvel", mujoco.mjtSensor.mjSENS_FRAMEANGVEL, site, "platform_centre")
+    site, sensor = mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtSensor
+    linvel = sensor.mjSENS_FRAMELINVEL
+    spec.add_sensor(name="plf_linvel", type=linvel, objtype=site, objname="platform_centre")
+    spec.add_sensor(
+        name="plf_angvel", type=sensor.mjSENS_FRAMEANGVEL, objtype=site, objname="platform_centre"
+    )
     for leg in a1.LEG_NAMES:
-        sensor(f"{leg}_foot_linvel", mujoco.mjtSensor.mjSENS_FRAMELINVEL, site, f"{leg}_foot")
-    # Contact sensors (need the acceleration stage: read after a step they describe the last substep).
-    found = 1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)
-    force = 1 << int(mujoco.mjtConDataField.mjCONDATA_FORCE)
-    reduce_netforce = 3  # MJCF reduce="netforce": one net force, world frame
-    for leg in a1.LEG_NAMES:
-        s = sensor(
-            f"{leg}_foot_contact", mujoco.mjtSensor.mjSENS_CONTACT, mujoco.mjtObj.mjOBJ_GEOM, f"{leg}_foot"
-        )
-        s.intprm = [found | force, reduce_netforce, 1]
-    for name in NON_FOOT_BODIES:  # body1=name: geoms of that body only (feet are bodies of their own)
-        s = sensor(f"{name}_collision", mujoco.mjtSensor.mjSENS_CONTACT, mujoco.mjtObj.mjOBJ_BODY, name)
-        s.intprm = [found, 0, 1]
+        spec.add_sensor(name=f"{leg}_foot_linvel", type=linvel, objtype=site, objname=f"{leg}_foot")
+    add_robot_sensors(spec)
     return spec
 
 

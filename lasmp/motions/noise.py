@@ -1,37 +1,14 @@
-"""Coloured noise for the real-motion generators: filtered white noise and random-phase synthesis.
+"""Coloured noise and linear filters for the motion models.
 
-PSD convention
-    All spectra here are *one-sided*: the variance is the integral over non-negative frequencies.
-    :func:`filtered_white_noise` speaks in angular frequency (per rad/s), the convention of the
-    Dryden forming filters of MIL-F-8785C; :func:`random_phase_noise` in cyclic frequency (per Hz),
-    the convention of ``scipy.signal.welch``. The two are related by ``G(f) = 2 pi Phi(2 pi f)``.
+:func:`filtered_white_noise` (white noise through a transfer function; PSDs per rad/s, as the
+Dryden filters are written) and :func:`random_phase_noise` (a sum of random-phase cosines with a
+given PSD per Hz, by one inverse FFT); :func:`sum_of_cosines` for frequency sets off a uniform grid;
+:func:`lti_filter` and :func:`second_order_tf` for the vehicles' body modes; :func:`smooth_ramp`
+to fade motion in from rest. All spectra are one-sided. Why the white noise is held at variance
+pi / dt, and the random-phase method's exact variance: docs/real_motion.md, "Noise".
 
-1. White noise through a linear filter (:func:`filtered_white_noise`): continuous white noise of
-   unit one-sided PSD per rad/s (``Phi_in(w) = 1`` for ``w >= 0``) drives ``H(s) = num(s) / den(s)``,
-   so the output's one-sided PSD is ``Phi_out(w) = |H(i w)|^2`` and its variance
-   ``int_0^inf |H(i w)|^2 dw``. On a grid of step dt the input is held over each step (a
-   zero-order hold) at a Gaussian level of variance ``pi / dt``: its one-sided PSD per Hz is then
-   ``2 (pi / dt) dt = 2 pi`` over [0, 1 / (2 dt)], i.e. 1 per rad/s, the continuous value (the hold
-   rolls it off by sinc^2(f dt), 0.3 % at f = 1 / (20 dt)). The filter is discretised for exactly
-   that held input (``scipy.signal.cont2discrete``, zero-order hold) and run with
-   ``scipy.signal.lfilter``. ``warmup_s`` of output is computed and dropped first, so a record
-   starts in the filter's stationary state instead of at rest.
-
-2. Random-phase synthesis (:func:`random_phase_noise`) of a one-sided PSD ``S(f)`` per Hz::
-
-       x(t) = sum_k sqrt(2 S(f_k) df) cos(2 pi f_k t + phi_k),    phi_k ~ U[0, 2 pi)
-
-   on the uniform grid ``f_k = k df`` inside [f_min, f_max] (Shinozuka and Jan (1972),
-   "Digital simulation of random processes and its applications", J. Sound Vib. 25(1)). The
-   amplitudes are deterministic, so the variance is exactly ``sum_k S(f_k) df`` over a whole
-   period 1 / df. With the default ``df = 1 / (n dt)`` the record is one period long; a smaller
-   ``df`` (longer period) is allowed. Evaluated with one inverse real FFT.
-
-Both draw from ``np.random.default_rng(seed)``; ``seed`` may also be a ``np.random.Generator``,
-which is then used (and advanced) as is, so one generator can feed several independent channels.
-
-:func:`lti_filter` runs a continuous transfer function over a sampled (smooth) signal, and
-:func:`smooth_ramp` is the C2 ramp the generators use to fade the noise in from rest.
+``seed`` may be an int or a ``np.random.Generator`` (used and advanced as is, so one generator can
+feed several independent channels).
 """
 
 from __future__ import annotations
@@ -56,12 +33,37 @@ def lti_filter(num, den, u: np.ndarray, dt_s: float, method: str = "bilinear") -
     return signal.lfilter(np.ravel(num_d), np.ravel(den_d), np.asarray(u, dtype=np.float64))
 
 
+def second_order_tf(omega_n_rad_s: float, zeta: float, *, base_excited: bool) -> tuple[list, list]:
+    """(num, den) of a second-order mode: ``w^2 / (s^2 + 2 zeta w s + w^2)`` (a low-pass body mode,
+    or a hull driven through its static response), or with ``base_excited`` the sprung mass on a
+    spring and damper over a moving base, ``(2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)``."""
+    w = float(omega_n_rad_s)
+    num = [2.0 * zeta * w, w * w] if base_excited else [w * w]
+    return num, [1.0, 2.0 * zeta * w, w * w]
+
+
+def sum_of_cosines(x: np.ndarray, omega: np.ndarray, complex_amp: np.ndarray) -> np.ndarray:
+    """``Re(sum_i A_i exp(i omega_i x))`` at x (K,) for amplitudes (N,) or (N, D): (K,) or (K, D).
+
+    A sum of cosines ``|A_i| cos(omega_i x + arg A_i)`` for any frequency set (a jittered or
+    log-spaced grid, where an FFT does not apply), evaluated in chunks of x to bound the memory.
+    """
+    x = np.asarray(x, dtype=np.float64).reshape(-1)
+    amp = np.asarray(complex_amp)
+    cols = amp.reshape(len(omega), -1)
+    out = np.empty((len(x), cols.shape[1]))
+    chunk = max(1, 2_000_000 // max(1, len(omega)))  # ~32 MB of complex exponentials at a time
+    for i in range(0, len(x), chunk):
+        out[i : i + chunk] = (np.exp(1j * np.outer(x[i : i + chunk], omega)) @ cols).real
+    return out if amp.ndim > 1 else out[:, 0]
+
+
 def filtered_white_noise(
     num, den, n_samples: int, dt_s: float, *, seed=None, warmup_s: float = 0.0
 ) -> np.ndarray:
     """``n_samples`` of ``H(s) = num / den`` driven by unit one-sided-PSD (per rad/s) white noise.
 
-    The output's one-sided PSD is ``|H(i w)|^2`` per rad/s (module docstring, item 1); the first
+    The output's one-sided PSD is ``|H(i w)|^2`` per rad/s (docs/real_motion.md, "Noise"); the first
     ``warmup_s`` seconds are simulated and discarded so the record is stationary from sample 0.
     """
     if n_samples < 1 or dt_s <= 0 or warmup_s < 0:
@@ -71,7 +73,7 @@ def filtered_white_noise(
         )
     rng = np.random.default_rng(seed)
     n_warm = int(np.ceil(warmup_s / dt_s))
-    # the held level's variance pi / dt gives the held signal a PSD of 1 per rad/s (docstring)
+    # a level of variance pi / dt held over each step has a one-sided PSD of 1 per rad/s
     u = rng.standard_normal(n_warm + n_samples) * np.sqrt(np.pi / dt_s)
     return lti_filter(num, den, u, dt_s, method="zoh")[n_warm:]
 
@@ -89,7 +91,7 @@ def random_phase_noise(
     """``n_samples`` at step ``dt_s`` of a sum of cosines with the one-sided PSD ``psd_per_hz(f)``.
 
     Components on ``f_k = k df`` with ``f_min_hz <= f_k <= f_max_hz`` and below the Nyquist
-    frequency; amplitudes ``sqrt(2 S(f_k) df)``, phases uniform (module docstring, item 2).
+    frequency; amplitudes ``sqrt(2 S(f_k) df)``, phases uniform (Shinozuka and Jan 1972; docs/real_motion.md).
     ``df_hz`` defaults to ``1 / (n_samples dt_s)`` (the record is one period) and must divide
     ``1 / dt_s`` into at least ``n_samples`` steps.
     """

@@ -1,66 +1,28 @@
 """Lift (elevator): the car floor on a jerk-limited S-curve trip up or down, or a safety-gear stop.
 
-Model
-    The car floor moves vertically only (world z up): ``pose = [0, 0, z(t), 0, 0, 0]``. After a
-    hold of ``hold_s`` at rest the car travels ``travel_m`` on the classic rest-to-rest 7-phase
-    S-curve of :func:`lasmp.eval.real_motion.profiles.s_curve` (piecewise-constant jerk
-    ``+-j_max``, acceleration up to ``a_max``, speed up to ``v_max``; fewer phases when the trip is
-    too short to reach them), then stays at rest until ``duration_s``:
-
-    * ``"up"``: ``z`` rises by ``travel_m``; ``"down"``: it falls by ``travel_m``.
-    * ``"emergency_stop"``: the car sets off up on the same trip; ``trip_after_s`` after reaching
-      rated speed ``v_max`` the safety gear (in the up direction: the ascending car overspeed
-      protection means) trips and stops the car at the constant retardation
-      ``emergency_decel_mps2``. The retardation of a gripping safety gear is not set by a
-      controller but by the mechanics: it rises while the wedges or rollers bite and the gear's
-      springs deflect. We model that rise as a jerk-limited ramp of ``emergency_onset_s`` (the
-      jerk is ``emergency_decel_mps2 / emergency_onset_s``, 118 m/s^3 by default) and let the
-      retardation fall again over the same time as the car comes to rest, i.e.
-      ``velocity_change(v_max, 0, emergency_decel, emergency_decel / emergency_onset_s)``, so the
-      car ends at rest with zero acceleration. Real stops end more abruptly (and ring with rope
-      and car-frame elasticity); both are neglected.
-
-    Horizontal car sway from the guide rails (ISO 18738-1 measures it, typically well below the
-    vertical ride accelerations) is left zero: the motion is pure vertical translation.
-
-Parameter values (defaults) and sources
-    * ``v_max_mps`` = 1.6 m/s: a rated speed of the preferred series 0.63, 1.0, 1.6, 2.5 m/s for
-      passenger lifts in ISO 4190-1:2010, "Lift (Elevator) installation -- Part 1: Class I, II, III
-      and VI lifts"; typical passenger lifts run at 1.0-2.5 m/s.
-    * ``a_max_mps2`` = 1.0 m/s^2, ``j_max_mps3`` = 1.5 m/s^3: typical ride-quality settings of
-      passenger lifts, 0.8-1.2 m/s^2 and 1.0-2.0 m/s^3 (G. C. Barney, L. Al-Sharif (2016),
-      "Elevator Traffic Handbook: Theory and Practice", 2nd ed., Routledge; CIBSE Guide D:2015,
-      "Transportation systems in buildings"); the quantities (peak jerk, peak acceleration,
-      maximum speed of a trip) are those defined for measuring ride quality in ISO 18738-1:2012,
-      "Measurement of ride quality -- Part 1: Lifts (elevators)". The S-curve formulas: R. D.
-      Peters (1995), "Ideal lift kinematics", Elevator Technology 6, IAEE.
-    * ``emergency_decel_mps2`` = 0.6 g_n = 5.88 m/s^2: EN 81-20:2020, "Safety rules for the
-      construction and installation of lifts -- Part 20: Passenger and goods passenger lifts",
-      requires the average retardation of a progressive safety gear (free fall, rated load) to lie
-      between 0.2 g_n and 1.0 g_n (as did EN 81-1:1998+A3:2009, 9.8.4), and the ascending car
-      overspeed protection not to retard the empty car by more than 1 g_n; 0.6 g_n is the middle
-      of that band. g_n = 9.80665 m/s^2 (standard gravity).
-    * ``emergency_onset_s`` = 0.05 s: our choice (no standard prescribes it): a stiff gear builds
-      its braking force within tens of milliseconds of the wedges touching the rail; 50 ms keeps
-      the peak deceleration resolved on the 100 Hz grid (5 samples).
-    * ``trip_after_s`` = 1.0 s at rated speed before the gear trips (scenario choice; real gears
-      trip at >= 115 % of rated speed on overspeed, here the trip is taken at rated speed).
-    * ``travel_m`` = 12 m: four storeys of 3 m (scenario choice), ``hold_s`` = 1 s at rest first.
+Why: a lift is the vertical moving floor, with the largest sustained vertical accelerations a
+robot meets indoors. The car moves vertically only: after a hold at rest it travels 12 m on the
+7-phase rest-to-rest S-curve of :func:`lasmp.motions.profiles.s_curve` (1.6 m/s, 1.0 m/s^2,
+1.5 m/s^3), up or down. ``emergency_stop`` is an *ascending* car stopped from rated speed by its
+ascending-car overspeed protection at 0.6 g_n, inside EN 81-20's limit of at most 1 g_n for that
+stop; the retardation builds up over 50 ms. Car sway is not modelled. Parameter values and
+sources: docs/real_motion.md, "Lift".
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from lasmp.eval.real_motion.motion import (
+from lasmp.motions.motion import (
     DEFAULT_DT_S,
     DEFAULT_DURATION_S,
     Motion,
+    choice,
     non_negative,
     positive,
     time_grid,
 )
-from lasmp.eval.real_motion.profiles import JerkProfile, concatenate, hold, s_curve, velocity_change
+from lasmp.motions.profiles import JerkProfile, concatenate, hold, s_curve, velocity_change
 
 VARIANTS = ("up", "down", "emergency_stop")
 
@@ -69,7 +31,7 @@ TRAVEL_M = 12.0
 V_MAX_MPS = 1.6
 A_MAX_MPS2 = 1.0
 J_MAX_MPS3 = 1.5
-EMERGENCY_DECEL_MPS2 = 0.6 * G_N_MPS2
+EMERGENCY_DECEL_MPS2 = 0.6 * G_N_MPS2  # an ascending car's stop: EN 81-20 allows at most 1 g_n
 EMERGENCY_ONSET_S = 0.05
 TRIP_AFTER_S = 1.0
 HOLD_S = 1.0
@@ -85,7 +47,7 @@ def lift_profile(
     emergency_onset_s: float,
     trip_after_s: float,
 ) -> JerkProfile:
-    """The car's vertical trip (no leading hold), z positive up (module docstring)."""
+    """The car's vertical trip (no leading hold), z positive up (docs/real_motion.md, "Lift")."""
     where = "lift"
     trip = s_curve(travel_m, v_max_mps, a_max_mps2, j_max_mps3)
     if variant == "up":
@@ -124,17 +86,16 @@ def lift(
     dt_s: float = DEFAULT_DT_S,
     seed: int = 0,
 ) -> Motion:
-    """The floor of a lift car (model, parameters and sources: module docstring).
+    """The floor of a lift car (model, parameters and sources: docs/real_motion.md).
 
     ``variant``: "up", "down" (a ``travel_m`` trip on the jerk-limited S-curve) or
-    "emergency_stop" (travelling up, the safety gear stops the car from rated speed at
-    ``emergency_decel_mps2``). The trip starts after ``hold_s`` at rest and must end, at rest,
+    "emergency_stop" (travelling up, the ascending car overspeed protection stops the car from
+    rated speed at ``emergency_decel_mps2``). The trip starts after ``hold_s`` at rest and must end, at rest,
     within ``duration_s``. The motion has no random content: ``seed`` is accepted for the suite's
     common signature and recorded. Raises ValueError naming the bad parameter or the misfit.
     """
     where = "lift"
-    if variant not in VARIANTS:
-        raise ValueError(f"{where}: unknown variant {variant!r}; valid: {list(VARIANTS)}")
+    choice(where, "variant", variant, VARIANTS)
     travel = positive(where, "travel_m", travel_m)
     v_max = positive(where, "v_max_mps", v_max_mps)
     a_max = positive(where, "a_max_mps2", a_max_mps2)

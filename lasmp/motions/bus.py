@@ -1,129 +1,14 @@
 """City bus: the floor of a 12 m low-floor bus in stop-and-go traffic, a turn, a speed hump, braking.
 
-Frames and signs
-    Bus body frame at the centre of gravity (CG): x forward, y to the left, z up; the pose
-    convention of :mod:`lasmp.eval.real_motion.motion` (``R = Rz(yaw) Ry(pitch) Rx(roll)``), so a
-    positive pitch puts the nose *down* and a positive roll lifts the left side (the body leans to
-    the right). The bus starts at rest at the origin heading along world +x. Its translation is
-    kept as it is (a bus travels ~80 m in 20 s; the platform world is unbounded and
-    translation-invariant); the yaw is the heading, which stays within +-``turn_angle_rad``.
-
-1. Longitudinal motion (:mod:`lasmp.eval.real_motion.profiles`): piecewise-constant jerk,
-   integrated exactly. ``stop_and_go``: hold ``hold_s`` at rest; pull away 0 -> v_c
-   (``velocity_change``, peak ``accel_mps2``, jerk ``jerk_mps3``); cruise at v_c over the speed
-   hump; a turn at v_c; normal braking v_c -> 0 (peak ``brake_mps2``); dwell ``dwell_s``; repeated
-   ``stops`` times (turns alternate left/right so the heading stays bounded); at rest to the end.
-   ``emergency_brake``: hold; pull away; cruise ``cruise_s``; emergency braking v_c -> 0 at
-   ``emergency_decel_mps2`` with jerk ``emergency_jerk_mps3`` (the brake-pressure build-up); at
-   rest to the end. Path distance ``s(t)``, speed ``v(t)``, longitudinal acceleration ``a_x(t)``.
-
-2. Turn: the lateral acceleration ``a_y(t)`` is itself a jerk-limited trapezoid (0 ->
-   ``a_lat_mps2`` at ``jerk_mps3``, hold, back to 0), driven at constant speed v_c, and the heading
-   rate follows from it, ``psi_dot = a_y / v`` (kinematic, no tyre slip). The heading change is
-   the area of ``a_y`` over v, so the trapezoid is exactly the acceleration history of a
-   ``velocity_change(0, turn_angle_rad * v_c, a_lat_mps2, jerk_mps3)``: ``psi(t) = u(t) / v_c``
-   with u that profile's "velocity". A 45 deg turn at 30 km/h (radius v^2 / a_y = 46 m) has the
-   same lateral-acceleration history as a 90 deg corner at 15 km/h. The CG's world position
-   ``x = int v cos(psi) dt``, ``y = int v sin(psi) dt`` (cumulative Simpson on a 10x finer grid).
-
-3. Road: elevation as a function of path distance, ``z_road(x) = bump(x) + roughness(x)``.
-
-   * Speed hump (``bump_shape``): ``"circular"`` -- the round-top (Watts) hump, a circular arc of
-     chord ``bump_length_m`` and rise ``bump_height_m``: radius ``R = (l^2 / 4 + h^2) / (2 h)``,
-     ``z = sqrt(R^2 - (x - l/2)^2) - (R - h)`` for ``0 <= x <= l`` (G. R. Watts (1973), "Road humps
-     for the control of vehicle speeds", TRRL Laboratory Report LR 597); or ``"half_sine"``:
-     ``z = h sin(pi x / l)``. A negative height makes a pothole/dip of the same shape. Tyre
-     enveloping (the contact patch smoothing the profile) is neglected.
-   * Random roughness (``road_class``, None for a perfectly smooth road): ISO 8608:2016
-     "Mechanical vibration -- Road surface profiles -- Reporting of measured data": displacement
-     PSD ``G_d(n) = G_d(n0) (n / n0)^-2``, ``n0 = 0.1`` cycle/m, class geometric means
-     ``G_d(n0)`` = 16e-6 (A), 64e-6 (B), 256e-6 (C), 1024e-6 (D) m^3, on the band
-     0.011 <= n <= 2.83 cycle/m; a single track (both wheels of an axle see the same profile; no
-     roll input) synthesised as ``sum_i sqrt(2 G_d(n_i) dn_i) cos(2 pi n_i x + phi_i)`` with
-     ``N_ROAD_COMPONENTS`` log-spaced bins and phases ``phi_i ~ U[0, 2 pi)`` from
-     ``np.random.default_rng(seed)``.
-
-   The front axle (``cg_to_front_axle_m`` = a ahead of the CG) rides ``z_road(s + a)``, the rear
-   axle (b = wheelbase - a behind) ``z_road(s - b)``: it meets everything the front met when the
-   bus has moved one wheelbase L further, i.e. ``L / v`` later at constant speed.
-
-4. Body heave and pitch from the road: each axle a quarter-car-like 1-DoF sprung mass on a
-   spring-damper (tyre taken as rigid), ``z_b'' + 2 zeta w_n (z_b' - z_r') + w_n^2 (z_b - z_r) = 0``,
-   i.e. ``H(s) = (2 zeta w_n s + w_n^2) / (s^2 + 2 zeta w_n s + w_n^2)`` (``body_freq_hz``,
-   ``body_damping_ratio``; discretised exactly for a piecewise-linear input with scipy.signal
-   ``cont2discrete(method="foh")`` and run with ``lfilter``). The axles are treated as decoupled
-   (a pitch-plane dynamic index ``k_y^2 / (a b)`` of 1, the usual first approximation for buses
-   and trucks), so
-   ``z_cg = (b z_f + a z_r) / L`` and the road pitch ``theta = arcsin((z_r - z_f) / L)`` (nose up
-   when the front rises). Each axle is at equilibrium on its own road height at t = 0.
-
-5. Load-transfer roll and pitch: quasi-static gradients passed through the body mode,
-   ``phi = H_lp[k_roll a_y]`` (leaning out of the turn) and ``theta += H_lp[-k_pitch a_x]``
-   (nose down under braking, squat under acceleration), ``H_lp(s) = w_n^2 / (s^2 + 2 zeta w_n s +
-   w_n^2)`` with the same ``w_n, zeta`` (an assumption: air-suspended buses have their bounce,
-   pitch and roll modes close together near 1 Hz). The body rotates about its CG (roll and pitch
-   centres not modelled).
-
-6. Floor point: ``floor_offset_m`` (forward, left, up) from the CG, through
-   :func:`~lasmp.eval.real_motion.motion.deck_pose` (lever arm of roll, pitch and yaw).
-
-Parameter values (defaults) and sources
-    * ``cruise_speed_mps`` = 30 km/h = 8.33 m/s: the lower end of urban speeds (30 km/h zones;
-      50 km/h the usual urban limit in Europe; "Stockholm Declaration", Third Global Ministerial
-      Conference on Road Safety, 2020, calls for 30 km/h where people walk and vehicles mix).
-    * ``accel_mps2`` = ``brake_mps2`` = 1.5 m/s^2 and ``jerk_mps3`` = 2.0 m/s^3: normal service
-      acceleration/braking ~1-1.5 m/s^2 and jerk below the comfort limit for standing passengers;
-      L. L. Hoberock (1977), "A survey of longitudinal acceleration comfort studies in ground
-      transportation vehicles", ASME J. Dynamic Systems, Measurement and Control 99(2), 76-84,
-      ~0.11-0.15 g (1.1-1.5 m/s^2) and 0.3 g/s (2.9 m/s^3), the values commonly cited from that
-      survey as acceptable for normal operation; the same jerk limits the turn's lateral ramps.
-      Also B. de Graaf, W. van Weperen (1997), "The retention of balance: an exploratory study
-      into the limits of acceleration the human body can withstand without losing equilibrium",
-      Human Factors 39(1), 111-118.
-    * ``emergency_decel_mps2`` = 5.0 m/s^2: UNECE Regulation No. 13 (heavy-vehicle braking),
-      Annex 4, Type-0 test: service braking of category M3 vehicles (buses > 5 t) must reach a
-      mean fully developed deceleration >= 5.0 m/s^2. ``emergency_jerk_mps3`` = 10 m/s^3: the
-      deceleration builds in 0.5 s, inside the 0.6 s response time UNECE R13 (Annex 6) allows
-      for compressed-air brakes to reach 75 % of the brake-cylinder pressure.
-    * ``a_lat_mps2`` = 1.5 m/s^2, ``turn_angle_rad`` = pi/4 at v_c: lateral acceleration in urban
-      turns 1-2 m/s^2: below the side-friction factors AASHTO (2018), "A Policy on Geometric
-      Design of Highways and Streets" (7th ed.), allows on low-speed urban street curves (up to
-      ~0.3, i.e. ~3 m/s^2, at 30 km/h), and at the ~0.15 g comfort value of Hoberock (1977)
-      taken across to the lateral direction (assumed).
-    * Geometry of a 12 m two-axle low-floor city bus: ``wheelbase_m`` = 5.845 m (Mercedes-Benz
-      Citaro O 530 technical data); ``cg_to_front_axle_m`` = 3.6 m (CG at ~62 % of the wheelbase
-      behind the front axle: rear-engined, rear axle carrying about 60-65 % of the weight, cf. the
-      Citaro's permissible axle loads 7.1 t / 11.5 t; assumed); CG height ``CG_HEIGHT_M`` = 1.1 m
-      and floor height ``FLOOR_HEIGHT_M`` = 0.34 m above the road (a Class I low-floor city bus
-      in the sense of UNECE Regulation No. 107, ~320-340 mm floor at the doors in manufacturers'
-      data; CG height assumed for a laden bus), so the floor is 0.76 m below the CG;
-      ``floor_offset_m`` = (1.0, 0, -0.76): the standing area by the middle door, 1 m ahead of the
-      CG (assumed).
-    * ``body_freq_hz`` = 1.0 Hz, ``body_damping_ratio`` = 0.3: sprung-mass natural frequency ~1 Hz
-      and damping ratio 0.2-0.4 of road vehicles (T. D. Gillespie (1992), "Fundamentals of Vehicle
-      Dynamics", SAE R-114, ch. 5 "Ride"; J. Y. Wong (2008), "Theory of Ground Vehicles", 4th ed.,
-      Wiley, ch. 7); air-suspended buses sit at its low end.
-    * ``roll_gradient_rad_per_mps2`` = 0.7 deg per m/s^2 (~7 deg/g): mid of the 0.5-1 deg per
-      m/s^2 typical of city buses (the roll gradient of Gillespie (1992), ch. 7; passenger cars
-      3-7 deg/g, buses higher with their tall CG and narrow air-spring track); consistent with the
-      estimate ``h_r / (K_phi / m - g h_r)`` for a 0.7 m roll-arm, 1.3 m spring track at 1 Hz and
-      anti-roll bars doubling the spring roll stiffness (assumed).
-    * ``pitch_gradient_rad_per_mps2`` = 0.2 deg per m/s^2: from the same suspension, the pitch
-      under load transfer without anti-dive geometry is ``theta / a_x = h_cg / (w_n^2 a b)`` =
-      1.1 / ((2 pi 1.0)^2 3.6 x 2.245) = 3.4e-3 rad = 0.20 deg per m/s^2 (Gillespie (1992), ch. 5/7
-      load transfer; derived here).
-    * ``bump_height_m`` = 0.075 m, ``bump_length_m`` = 3.66 m, circular: the 12 ft, 3-3.5 in round
-      speed hump of the Institute of Transportation Engineers (2007), "Guidelines for the Design
-      and Application of Speed Humps" (an ITE Recommended Practice), a lowered Watts (1973)
-      profile (3.7 m, 100 mm); designed to be crossed at 25-30 km/h.
-    * ``road_class`` = "A" (ISO 8608 "very good": new urban asphalt); "B"-"C" for worn streets.
-    * ``hold_s`` = 0.5 s at rest first, ``dwell_s`` = 3 s at a stop between cycles, ``stops`` = 1:
-      scenario choices. With the defaults the stop-and-go schedule ends at rest at 19.57 s, so it
-      fits the suite's 20 s; slower accelerations or a larger turn need a longer ``duration_s``.
-
-Not modelled: tyre slip and steer geometry (offtracking), roll/pitch centres and the body's
-rotation about them, the brake release "jerk at stop" (the braking deceleration here ramps down
-with the same jerk limit instead of ending abruptly), engine/driveline vibration and gear shifts.
+Why: a bus floor is the everyday moving floor with the largest horizontal accelerations. A
+jerk-limited speed profile (:mod:`lasmp.motions.profiles`) pulls away, cruises over a round-top
+speed hump, turns 45 degrees with a jerk-limited lateral acceleration and brakes to a stop
+(``stop_and_go``), or brakes hard from cruise (``emergency_brake``, 5 m/s^2: the UNECE R13 minimum
+for M3 buses, so a lower bound on what a real emergency stop reaches). Each axle rides the hump
+and an ISO 8608 road through a second-order suspension; load transfer adds roll in the turn and
+pitch under braking. Bus frame at the CG: x forward, y left, z up; the bus starts at rest heading
+along +x and its translation is kept. Derivation, parameter values and sources:
+docs/real_motion.md, "Bus".
 """
 
 from __future__ import annotations
@@ -134,17 +19,21 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import cumulative_simpson
 
-from lasmp.eval.real_motion.motion import (
+from lasmp.motions.motion import (
     DEFAULT_DT_S,
     DEFAULT_DURATION_S,
+    MAX_YAW_RAD,
     Motion,
+    choice,
     deck_pose,
+    finite,
     non_negative,
+    point,
     positive,
     time_grid,
 )
-from lasmp.eval.real_motion.noise import lti_filter
-from lasmp.eval.real_motion.profiles import JerkProfile, concatenate, hold, velocity_change
+from lasmp.motions.noise import lti_filter, second_order_tf, sum_of_cosines
+from lasmp.motions.profiles import JerkProfile, concatenate, hold, velocity_change
 
 VARIANTS = ("stop_and_go", "emergency_brake")
 
@@ -153,11 +42,11 @@ CRUISE_SPEED_MPS = 30.0 * KMH
 ACCEL_MPS2 = 1.5
 BRAKE_MPS2 = 1.5
 JERK_MPS3 = 2.0
-EMERGENCY_DECEL_MPS2 = 5.0
+EMERGENCY_DECEL_MPS2 = 5.0  # UNECE R13's legal minimum for M3 service braking: a lower bound
 EMERGENCY_JERK_MPS3 = 10.0
 A_LAT_MPS2 = 1.5
 TURN_ANGLE_RAD = math.pi / 4.0
-MAX_TURN_ANGLE_RAD = 2.6  # the platform's yaw range: the heading must stay within it
+MAX_TURN_ANGLE_RAD = MAX_YAW_RAD  # the heading must stay within the training trajectories' yaw range
 WHEELBASE_M = 5.845
 CG_TO_FRONT_AXLE_M = 3.6
 CG_HEIGHT_M = 1.1
@@ -205,25 +94,23 @@ def bump_profile(x_m, height_m: float, length_m: float, shape: str = "circular")
         r = (ell**2 / 4.0 + h**2) / (2.0 * abs(h))  # radius of the arc through both ends and the crest
         z[inside] = math.copysign(1.0, h) * (np.sqrt(r**2 - (x[inside] - ell / 2.0) ** 2) - (r - abs(h)))
     else:
-        raise ValueError(f"bump_profile: unknown shape {shape!r}; valid: {list(BUMP_SHAPES)}")
+        choice("bump_profile", "shape", shape, BUMP_SHAPES)
     return z
 
 
 def road_roughness(road_class: str, seed: int = 0, n_components: int = N_ROAD_COMPONENTS):
-    """A function x (m) -> elevation (m) of an ISO 8608 random road of ``road_class`` (docstring 3)."""
-    if road_class not in ROAD_CLASSES_GD_M3:
-        raise ValueError(
-            f"road_roughness: unknown road_class {road_class!r}; valid: {sorted(ROAD_CLASSES_GD_M3)}"
-        )
+    """A function x (m) -> elevation (m) of an ISO 8608 random road of ``road_class``: random-phase
+    cosines on ``n_components`` log-spaced bins of the ISO band (docs/real_motion.md, "Bus")."""
+    choice("road_roughness", "road_class", road_class, ROAD_CLASSES_GD_M3)
     edges = np.geomspace(*ROAD_BAND_CYC_PER_M, n_components + 1)
     n = np.sqrt(edges[:-1] * edges[1:])
     psd = ROAD_CLASSES_GD_M3[road_class] * (n / ROAD_N0_CYC_PER_M) ** -2.0
-    amp = np.sqrt(2.0 * psd * np.diff(edges))
     phase = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, n_components)
+    amp = np.sqrt(2.0 * psd * np.diff(edges)) * np.exp(1j * phase)
 
     def elevation(x_m) -> np.ndarray:
         x = np.asarray(x_m, dtype=np.float64)
-        return np.cos(2.0 * np.pi * n * x[..., None] + phase) @ amp
+        return sum_of_cosines(x, 2.0 * np.pi * n, amp).reshape(x.shape)
 
     return elevation
 
@@ -231,10 +118,9 @@ def road_roughness(road_class: str, seed: int = 0, n_components: int = N_ROAD_CO
 def _second_order(u: np.ndarray, t_s: np.ndarray, freq_hz: float, zeta: float, with_rate: bool) -> np.ndarray:
     """Response from rest of ``(2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)`` (``with_rate``, a
     base-excited sprung mass) or ``w^2 / (s^2 + 2 zeta w s + w^2)`` (a low-pass body mode) to u(t)."""
-    w = 2.0 * np.pi * freq_hz
-    num = [2.0 * zeta * w, w * w] if with_rate else [w * w]
+    tf = second_order_tf(2.0 * np.pi * freq_hz, zeta, base_excited=with_rate)
     # first-order hold: exact for an input linear between samples, as scipy.signal.lsim
-    return lti_filter(num, [1.0, 2.0 * zeta * w, w * w], u, float(t_s[1] - t_s[0]), method="foh")
+    return lti_filter(*tf, u, float(t_s[1] - t_s[0]), method="foh")
 
 
 def city_bus(
@@ -267,7 +153,7 @@ def city_bus(
     dt_s: float = DEFAULT_DT_S,
     seed: int = 0,
 ) -> Motion:
-    """The floor point of a city bus (model, parameters and sources: module docstring).
+    """The floor point of a city bus (model, parameters and sources: docs/real_motion.md).
 
     ``variant``: "stop_and_go" (pull away, cruise over a speed hump, a turn of ``turn_angle_rad``
     (positive left; alternating in direction over ``stops`` cycles), normal braking to a stop) or
@@ -279,8 +165,7 @@ def city_bus(
     must end at rest within ``duration_s``. Raises ValueError naming the bad parameter.
     """
     where = "city_bus"
-    if variant not in VARIANTS:
-        raise ValueError(f"{where}: unknown variant {variant!r}; valid: {list(VARIANTS)}")
+    choice(where, "variant", variant, VARIANTS)
     v_c = positive(where, "cruise_speed_mps", cruise_speed_mps)
     acc = positive(where, "accel_mps2", accel_mps2)
     brake = positive(where, "brake_mps2", brake_mps2)
@@ -288,32 +173,21 @@ def city_bus(
     em_decel = positive(where, "emergency_decel_mps2", emergency_decel_mps2)
     em_jerk = positive(where, "emergency_jerk_mps3", emergency_jerk_mps3)
     a_lat = positive(where, "a_lat_mps2", a_lat_mps2)
-    try:
-        turn = float(turn_angle_rad)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: turn_angle_rad must be a number, got {turn_angle_rad!r}") from None
-    if not (math.isfinite(turn) and abs(turn) <= MAX_TURN_ANGLE_RAD):
+    turn = finite(where, "turn_angle_rad", turn_angle_rad)
+    if abs(turn) > MAX_TURN_ANGLE_RAD:
         raise ValueError(
-            f"{where}: turn_angle_rad must be finite with |turn_angle_rad| <= {MAX_TURN_ANGLE_RAD} rad "
-            f"(the platform's yaw range), got {turn_angle_rad!r}"
+            f"{where}: |turn_angle_rad| must be <= {MAX_TURN_ANGLE_RAD} rad (the training "
+            f"trajectories' yaw range), got {turn_angle_rad!r}"
         )
     if isinstance(stops, bool) or not isinstance(stops, int | np.integer) or stops < 1:
         raise ValueError(f"{where}: stops must be an integer >= 1, got {stops!r}")
-    try:
-        bump_h = float(bump_height_m)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: bump_height_m must be a number, got {bump_height_m!r}") from None
-    if not math.isfinite(bump_h):
-        raise ValueError(f"{where}: bump_height_m must be finite, got {bump_height_m!r}")
+    bump_h = finite(where, "bump_height_m", bump_height_m)
     bump_l = positive(where, "bump_length_m", bump_length_m)
-    if bump_shape not in BUMP_SHAPES:
-        raise ValueError(f"{where}: unknown bump_shape {bump_shape!r}; valid: {list(BUMP_SHAPES)}")
+    choice(where, "bump_shape", bump_shape, BUMP_SHAPES)
     if abs(bump_h) > bump_l / 2.0:
         raise ValueError(f"{where}: |bump_height_m| {bump_h} must not exceed half bump_length_m {bump_l}")
-    if road_class is not None and road_class not in ROAD_CLASSES_GD_M3:
-        raise ValueError(
-            f"{where}: unknown road_class {road_class!r}; valid: {sorted(ROAD_CLASSES_GD_M3)} or None"
-        )
+    if road_class is not None:
+        choice(where, "road_class (or None)", road_class, ROAD_CLASSES_GD_M3)
     wheelbase = positive(where, "wheelbase_m", wheelbase_m)
     a_front = positive(where, "cg_to_front_axle_m", cg_to_front_axle_m)
     if a_front >= wheelbase:
@@ -323,11 +197,7 @@ def city_bus(
     zeta = positive(where, "body_damping_ratio", body_damping_ratio)
     k_roll = non_negative(where, "roll_gradient_rad_per_mps2", roll_gradient_rad_per_mps2)
     k_pitch = non_negative(where, "pitch_gradient_rad_per_mps2", pitch_gradient_rad_per_mps2)
-    offset = np.asarray(floor_offset_m, dtype=np.float64)
-    if offset.shape != (3,) or not np.all(np.isfinite(offset)):
-        raise ValueError(
-            f"{where}: floor_offset_m must be 3 finite numbers (forward, left, up) m, got {floor_offset_m!r}"
-        )
+    offset = point(where, "floor_offset_m", floor_offset_m, "forward, left, up")
     t_hold = non_negative(where, "hold_s", hold_s)
     dwell = non_negative(where, "dwell_s", dwell_s)
     duration = positive(where, "duration_s", duration_s)

@@ -1,46 +1,12 @@
-"""Jerk-limited motion primitives: piecewise-constant jerk, integrated exactly phase by phase.
+"""Jerk-limited speed profiles: piecewise-constant jerk, integrated exactly phase by phase.
 
-Shared by the city bus (:mod:`lasmp.eval.real_motion.bus`) and the lift
-(:mod:`lasmp.eval.real_motion.lift`). A :class:`JerkProfile` is a list of phases, phase ``i`` lasting
-``T_i`` s with constant jerk ``j_i``, from an initial state ``(p0, v0, a0)``. Within a phase, with the
-local time ``tau`` in ``[0, T_i]`` and the state ``(p_i, v_i, a_i)`` at its start (exact polynomials,
-no numerical integration)::
-
-    a(tau) = a_i + j_i tau
-    v(tau) = v_i + a_i tau + j_i tau^2 / 2
-    p(tau) = p_i + v_i tau + a_i tau^2 / 2 + j_i tau^3 / 6
-
-so the peak jerk, acceleration and speed of a profile are exactly the parameters that made it.
-Before its start and after its end a profile continues with zero jerk (at rest, or at constant
-velocity, when its end acceleration is zero, as it is for every primitive here).
-
-Primitives (all start and end at zero acceleration)
-
-* :func:`hold` -- zero jerk for a while: a hold at rest, or a cruise at constant speed.
-* :func:`velocity_change` -- v0 -> v1 with ``|a| <= a_max`` and ``|j| <= j_max``: jerk +j for
-  ``T_j``, 0 for ``T_a``, -j for ``T_j`` (signs flipped for a decrease). With ``dv = |v1 - v0|``:
-  if ``dv >= a_max^2 / j_max`` the acceleration is a trapezoid, ``T_j = a_max / j_max``,
-  ``T_a = dv / a_max - T_j``, peak ``a_max``; otherwise it is a triangle that never reaches
-  ``a_max``: ``T_j = sqrt(dv / j_max)``, ``T_a = 0``, peak ``sqrt(dv j_max)``. Duration
-  ``2 T_j + T_a``; because the acceleration pulse is symmetric, the distance covered is
-  ``(v0 + v1) / 2 * (2 T_j + T_a)``.
-* :func:`s_curve` -- the classic 7-phase rest-to-rest point-to-point profile over a distance ``d``
-  with limits ``v_max, a_max, j_max``: accelerate 0 -> v_peak, cruise, decelerate v_peak -> 0.
-  Accelerating to ``v`` and back covers ``D(v) = v t_acc(v)`` with ``t_acc(v) = v / a_max +
-  a_max / j_max`` (trapezoid, ``v >= a_max^2 / j_max``) or ``2 sqrt(v / j_max)`` (triangle). If
-  ``D(v_max) <= d`` the peak is ``v_max`` and the cruise lasts ``(d - D(v_max)) / v_max``;
-  otherwise ``v_max`` is not reached and ``v_peak`` solves ``D(v_peak) = d`` in closed form:
-  ``v_peak = (d^2 j_max / 4)^(1/3)`` if that is below ``a_max^2 / j_max`` (``a_max`` not reached
-  either: 4 phases), else ``v_peak = (-a_max^2 / j_max + sqrt(a_max^4 / j_max^2 + 4 d a_max)) / 2``
-  (5 phases). The formulas are those of the standard lift kinematics, e.g. R. D. Peters (1995),
-  "Ideal lift kinematics: derivation of formulae for the equations of motion of a lift",
-  Elevator Technology 6, IAEE, and of the textbook S-curve (L. Biagiotti, C. Melchiorri (2008),
-  "Trajectory Planning for Automatic Machines and Robots", Springer, section 3.4).
-* :func:`concatenate` -- phases in sequence (hold, accelerate, cruise, brake, ...) into one
-  profile; each piece must start at the velocity and acceleration the previous one ended with.
-
-:meth:`JerkProfile.sample` gives the jerk/acceleration/velocity/position history at any times,
-e.g. a uniform grid from :func:`lasmp.eval.real_motion.motion.time_grid`.
+Shared by the city bus (:mod:`lasmp.motions.bus`) and the lift (:mod:`lasmp.motions.lift`). A
+:class:`JerkProfile` is a list of phases of constant jerk from an initial state; within a phase
+acceleration, velocity and position are exact polynomials, so a profile's peak jerk, acceleration
+and speed are exactly the parameters that made it. Primitives, all from and to zero acceleration:
+:func:`hold` (rest or cruise), :func:`velocity_change` (trapezoidal or triangular acceleration),
+:func:`s_curve` (the 7-phase rest-to-rest trip of lift kinematics), :func:`concatenate`. Their
+phase formulas and sources: docs/real_motion.md, "Jerk-limited profiles".
 """
 
 from __future__ import annotations
@@ -51,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from lasmp.eval.real_motion.motion import finite, positive
+from lasmp.motions.motion import finite, positive
 
 
 class Kinematics(NamedTuple):
@@ -174,7 +140,7 @@ def hold(duration_s: float, v_mps: float = 0.0) -> JerkProfile:
 
 
 def velocity_change_phases(dv_mps: float, a_max_mps2: float, j_max_mps3: float) -> tuple[float, float, float]:
-    """(T_j, T_a, peak acceleration) of a jerk-limited change of speed by ``|dv_mps|`` (module docstring)."""
+    """(T_j, T_a, peak acceleration) of a jerk-limited change of speed by ``|dv_mps|``."""
     dv = abs(float(dv_mps))
     if dv * j_max_mps3 >= a_max_mps2**2:  # long enough to reach a_max: trapezoidal acceleration
         t_j = a_max_mps2 / j_max_mps3
@@ -184,7 +150,7 @@ def velocity_change_phases(dv_mps: float, a_max_mps2: float, j_max_mps3: float) 
 
 
 def velocity_change(v0_mps: float, v1_mps: float, a_max_mps2: float, j_max_mps3: float) -> JerkProfile:
-    """Jerk-limited change of velocity v0 -> v1 from and to zero acceleration (module docstring).
+    """Jerk-limited change of velocity v0 -> v1 from and to zero acceleration (docs/real_motion.md).
 
     Trapezoidal acceleration peaking at ``a_max_mps2``, or triangular (peak ``sqrt(|dv| j_max)``) when
     the change is too small to reach it. ``v0 == v1`` gives an empty (zero-length) profile.
@@ -208,7 +174,7 @@ def _accel_time_s(v_mps: float, a_max_mps2: float, j_max_mps3: float) -> float:
 
 
 def s_curve_peak_speed(distance_m: float, v_max_mps: float, a_max_mps2: float, j_max_mps3: float) -> float:
-    """The peak speed of the rest-to-rest S-curve over ``|distance_m|`` (``v_max`` or less; docstring)."""
+    """The peak speed of the rest-to-rest S-curve over ``|distance_m|``: ``v_max``, or less on a short trip."""
     d = abs(float(distance_m))
     if v_max_mps * _accel_time_s(v_max_mps, a_max_mps2, j_max_mps3) <= d:
         return v_max_mps
@@ -223,7 +189,7 @@ def s_curve(distance_m: float, v_max_mps: float, a_max_mps2: float, j_max_mps3: 
     """Rest-to-rest jerk-limited point-to-point profile covering ``distance_m`` (either sign).
 
     Up to 7 phases (+j, 0, -j, cruise, -j, 0, +j); v_max and/or a_max are not reached when the
-    distance is too short (module docstring). Its end position equals ``distance_m`` exactly up to
+    distance is too short (docs/real_motion.md). Its end position equals ``distance_m`` exactly up to
     rounding.
     """
     where = "s_curve"

@@ -1,15 +1,10 @@
-"""The common currency of the real-motion scenarios: a platform motion sampled on a uniform grid.
+"""The common currency of the motion models: a platform motion sampled on a uniform grid.
 
-Every generator in this package returns a :class:`Motion`: the pose of the platform (the 2 x 2 m
-patch of deck or floor the robot stands on) over time, in the trajectory convention of
-:mod:`lasmp.envs.trajectories`: ``[x, y, z, roll, pitch, yaw]`` in m and rad, relative to the
-platform's initial pose (so ``pose[0]`` is all zeros), world z up, rotations composed as
-``R = Rz(yaw) Ry(pitch) Rx(roll)``. :func:`deck_pose` turns the motion of a vehicle's centre of
-gravity into the motion of a deck point away from it (the lever arm), which is what a robot on a
-ship's deck or a bus floor rides.
-
-A suite of motions is written as a "samples" trajectory file (:func:`to_trajectories`, then
-:func:`lasmp.envs.trajectories.save`), which the benchmark runner plays like any other file.
+A :class:`Motion` is the pose of the platform over time in the convention of
+:mod:`lasmp.envs.trajectories` (``[x, y, z, roll, pitch, yaw]``, m and rad, relative to the initial
+pose, ``R = Rz(yaw) Ry(pitch) Rx(roll)``). :func:`deck_pose` carries a vehicle's centre-of-gravity
+motion to a deck point away from it (the lever arm), :func:`to_trajectories` writes motions as one
+"samples" trajectory set, and the small checks here give every generator the same error messages.
 """
 
 from __future__ import annotations
@@ -24,6 +19,10 @@ from lasmp.envs import trajectories as trj
 
 DEFAULT_DT_S = 0.01  # 100 Hz samples: content up to ~20 Hz survives the cubic spline through them
 DEFAULT_DURATION_S = 20.0  # every scenario of the suite lasts this long (the issue asks >= 10 s)
+GRAVITY_M_S2 = 9.81
+# the training trajectories' ranges: the generators report, and never clip, motion beyond them
+TRAINING_RANGES = trj.TRAIN_RANGES
+MAX_YAW_RAD = TRAINING_RANGES.high[5]
 
 
 @dataclass
@@ -86,6 +85,21 @@ def non_negative(where: str, name: str, value) -> float:
 def finite(where: str, name: str, value) -> float:
     """`value` as a float; ValueError naming `where` and `name` unless it is finite."""
     return _number(where, name, value, lambda x: True, "a finite number")
+
+
+def choice(where: str, name: str, value, valid):
+    """`value` unchanged; ValueError naming `where`, `name` and the valid values unless it is one of them."""
+    if value not in valid:
+        raise ValueError(f"{where}: unknown {name} {value!r}; valid: {list(valid)}")
+    return value
+
+
+def point(where: str, name: str, value, axes: str) -> np.ndarray:
+    """`value` as a (3,) float array (a point in a vehicle's frame, m); ValueError unless 3 finite numbers."""
+    p = np.asarray(value, dtype=np.float64)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ValueError(f"{where}: {name} must be 3 finite numbers ({axes}) m, got {value!r}")
+    return p
 
 
 def time_grid(duration_s: float, dt_s: float = DEFAULT_DT_S) -> np.ndarray:

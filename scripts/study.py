@@ -99,6 +99,7 @@ def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
             str(ckpt.relative_to(ROOT)),
             "--out",
             str(out.relative_to(ROOT)),
+            "--no-platform-probe",  # the probe doubles an evaluation's cost; Stand Still's run has it
         ] + (["--controller", controller] if controller else [])
         execute(cmd, run_dir(method, seed).with_suffix(".commands"))
 

@@ -17,9 +17,9 @@ from rsl_rl.utils import resolve_class, resolve_obs_groups
 from tensordict import TensorDict
 
 from lasmp.algo.checkpoint import (
-    CheckpointError,
     check_compatible,
     checkpoint_cfg,
+    not_fitting,
     read_checkpoint,
     set_rng_state,
 )
@@ -50,22 +50,23 @@ def build_policy(data: dict, cfg: TrainCfg) -> torch.nn.Module:
     obs = TensorDict({g: torch.zeros(1, *shape) for g, shape in layout.items()}, batch_size=[1])
     actor_class, actor_cfg = resolve_class(dict(rsl["actor"]))
     groups = resolve_obs_groups(obs, dict(rsl["obs_groups"]), ["actor", "critic"])
-    try:
+    with not_fitting(f"{data['path']} does not fit its own config"):  # a shape mismatch, a missing key
         with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl's models print themselves
             policy = actor_class(obs, groups, "actor", int(data["num_actions"]), **actor_cfg)
         policy.load_state_dict(data["actor_state_dict"])
-    except (RuntimeError, ValueError, KeyError, TypeError) as err:  # a shape mismatch, a missing key
-        raise CheckpointError(f"checkpoint {data['path']} does not fit its own config: {err}") from err
     policy.deploy = True
     policy.eval()
     return policy
 
 
-def load_policy(path, seed: int = 0) -> Deployed:
+def load_policy(
+    path, seed: int = 0, num_envs: int = 1, trajectories: str | None = None, env_overrides: dict | None = None
+) -> Deployed:
     """The deployable policy of `path`, a checkpoint file or a run directory (its latest
-    model_<N>.pt). CheckpointError for a missing, unreadable, hostile or mismatched checkpoint."""
+    model_<N>.pt), with its config for `num_envs` envs (and a trajectory file, and nested env
+    overrides). CheckpointError for a missing, unreadable, hostile or mismatched checkpoint."""
     data = read_checkpoint(path)
-    cfg = checkpoint_cfg(data, 1, seed)
+    cfg = checkpoint_cfg(data, num_envs, seed, trajectories, env_overrides)
     return Deployed(build_policy(data, cfg), cfg, data)
 
 
@@ -73,24 +74,18 @@ def load_deploy_env(
     path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None, env_overrides: dict | None = None
 ):
     """(env, policy, cfg, checkpoint): `load_policy` plus an env of the checkpoint's task with
-    `num_envs` envs (and a trajectory file, and nested env overrides). The env takes the
-    checkpoint's curriculum state and random state (not its envs' running state: its size may
-    differ) and is reset, so its first episodes already use the checkpoint's curriculum."""
-    data = read_checkpoint(path)
-    cfg = checkpoint_cfg(data, num_envs, seed, trajectories, env_overrides)
-    policy = build_policy(data, cfg)
+    `num_envs` envs. The env takes the checkpoint's curriculum state and random state (not its envs'
+    running state: its size may differ) and is reset, so its first episodes already use the
+    checkpoint's curriculum."""
+    deployed = load_policy(path, seed, num_envs, trajectories, env_overrides)
+    cfg, data = deployed.cfg, deployed.checkpoint
     torch.manual_seed(cfg.seed)
     env = make_env(cfg.task, cfg.env, cfg.device)
     check_compatible(data, env)
-    where = data["path"]
-    try:
+    with not_fitting(f"{data['path']}: its env or random state does not fit this env"):
         if data.get("env_state"):
             env.load_state_dict(data["env_state"], run=False)
         if data.get("rng_state"):
             set_rng_state(data["rng_state"], env.rng)
-    except (RuntimeError, ValueError, KeyError, TypeError, IndexError) as err:
-        raise CheckpointError(
-            f"checkpoint {where}: its env or random state does not fit this env: {err}"
-        ) from err
     env.reset()
-    return env, policy, cfg, data
+    return env, deployed.policy, cfg, data

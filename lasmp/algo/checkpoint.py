@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import pickle
 import re
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -176,6 +177,18 @@ def check_compatible(data: dict, env) -> None:
             )
     if int(data["num_actions"]) != env.num_actions:
         raise CheckpointError(f"checkpoint has {data['num_actions']} actions, the env {env.num_actions}")
+
+
+@contextmanager
+def not_fitting(what: str):
+    """Errors of restoring a checkpoint that passed `read_checkpoint` but does not fit (a shape, a key,
+    a value) as one CheckpointError naming `what`."""
+    try:
+        yield
+    except CheckpointError:
+        raise
+    except (RuntimeError, ValueError, KeyError, TypeError, IndexError) as err:
+        raise CheckpointError(f"checkpoint {what}: {err}") from err
 
 
 def check_finite(state_dicts: dict, where: str) -> None:

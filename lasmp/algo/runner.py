@@ -19,7 +19,6 @@ import statistics
 import sys
 import threading
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 from rsl_rl.runners import OnPolicyRunner
@@ -33,6 +32,7 @@ from lasmp.algo.checkpoint import (
     check_compatible,
     check_finite,
     is_policy_only,
+    not_fitting,
     obs_layout,
     read_checkpoint,
     rng_state,
@@ -351,27 +351,17 @@ class LasmpRunner(OnPolicyRunner):
             data = self._this_ranks_state(data, run_wanted and bool((data.get("env_state") or {}).get("run")))
         where = data.get("path", "the checkpoint")
         # a file that passed read_checkpoint may still not fit: its errors as CheckpointError, naming it
-        with _not_fitting(f"{where} does not fit this policy and learner"):
+        with not_fitting(f"{where} does not fit this policy and learner"):
             iteration = self.alg.load(data, load_cfg, strict)  # the learner goes on from the checkpoint's too
         if iteration:
             self.current_learning_iteration = int(data["iter"]) + 1  # the saved iteration is complete
         if data.get("env_state"):  # the running state only to resume training in an env of the same size
             run = load_cfg is None or load_cfg.get("env_run_state", True)
-            with _not_fitting(f"{where}: the envs' running state does not fit this env"):
+            with not_fitting(f"{where}: the envs' running state does not fit this env"):
                 restored = self.env.load_state_dict(data["env_state"], run=run)
                 if restored and data.get("episode_log_state"):
                     self._load_episode_log_state(data["episode_log_state"])
         if data.get("rng_state"):  # older checkpoints lack it: the streams then restart from the seed
-            with _not_fitting(f"{where}: its random state cannot be restored"):
+            with not_fitting(f"{where}: its random state cannot be restored"):
                 set_rng_state(data["rng_state"], self.env.rng)
         return data.get("infos")
-
-
-@contextmanager
-def _not_fitting(what: str):
-    try:
-        yield
-    except CheckpointError:
-        raise
-    except (RuntimeError, ValueError, KeyError, TypeError, IndexError) as err:
-        raise CheckpointError(f"checkpoint {what}: {err}") from err

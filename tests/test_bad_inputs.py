@@ -34,7 +34,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from hydra.errors import CompactHydraException
 from omegaconf import OmegaConf
-from test_checkpoint_security import hostile_checkpoint
+from testkit import hostile_checkpoint
 
 from lasmp.algo import checkpoint as ckpt_tool
 from lasmp.algo.runner import LasmpRunner

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 from rsl_rl.utils.utils import resolve_class
+from testkit import tiny
 
 import lasmp.train
 import lasmp.train_cfg
@@ -22,7 +23,7 @@ from lasmp.algo.checkpoint import CheckpointError, checkpoint_cfg, read_checkpoi
 from lasmp.config import ConfigError
 from lasmp.eval.curves import read_scalars
 from lasmp.train import train
-from lasmp.train_cfg import register_configs, rsl_rl_cfg, to_train_cfg
+from lasmp.train_cfg import register_configs, rsl_rl_cfg
 
 register_configs()
 # scalars OneLineLogger writes every iteration (the episode extras come on top)
@@ -33,17 +34,6 @@ EVERY_ITERATION = {
     "Train/mean_reward",
     "Loss/roa_exp",
 }
-
-
-def tiny(log_dir: Path, **runner):
-    cfg = {
-        "env": {"num_envs": 4},
-        "runner": {"max_iterations": 2, "log_dir": str(log_dir), "save_interval": 1, **runner},
-        "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
-        "algo": {"num_mini_batches": 2, "num_learning_epochs": 1, "precision": "float32"},
-        "torch_threads": 1,
-    }
-    return OmegaConf.create(cfg)
 
 
 def tensorboard_scalars(run_dir: Path) -> dict[str, dict[int, float]]:
@@ -72,7 +62,7 @@ def test_unknown_logger_is_refused_at_start_up_naming_the_field(tmp_path, monkey
     with pytest.raises(
         ConfigError, match=r"runner\.logger must be one of tensorboard \| wandb \| neptune, got 'mlflow'"
     ):
-        train(tiny(run, logger="mlflow"))
+        train(tiny(run, precision="float32", runner={"logger": "mlflow"}))
     assert not run.exists()
 
 
@@ -85,25 +75,27 @@ def test_missing_package_or_credentials_are_refused_naming_the_fix(tmp_path, mon
             + ".*"
             + re.escape(f'pip install -e ".[{name}]"'),
         ):
-            to_train_cfg(tiny(tmp_path, logger=name))
+            tiny(tmp_path, precision="float32", runner={"logger": name})
     monkeypatch.setattr(lasmp.train_cfg, "_installed", lambda package: True)
     monkeypatch.delenv("NEPTUNE_API_TOKEN", raising=False)
     monkeypatch.setenv("NEPTUNE_USERNAME", "someone")
     with pytest.raises(ConfigError, match="runner.logger=neptune needs NEPTUNE_API_TOKEN set"):
-        to_train_cfg(tiny(tmp_path, logger="neptune"))
+        tiny(tmp_path, precision="float32", runner={"logger": "neptune"})
     with pytest.raises(ConfigError, match="runner.wandb_project must name a project"):
-        to_train_cfg(tiny(tmp_path, logger="wandb", wandb_project=""))
+        tiny(tmp_path, precision="float32", runner={"logger": "wandb", "wandb_project": ""})
 
 
 def test_rsl_rl_gets_the_dict_form_of_its_writers(tmp_path, monkeypatch):
     from rsl_rl.utils import NeptuneLogWriter, WandbLogWriter
 
-    assert rsl_rl_cfg(to_train_cfg(tiny(tmp_path)))["logger"] == "tensorboard"
+    assert rsl_rl_cfg(tiny(tmp_path, precision="float32"))["logger"] == "tensorboard"
     monkeypatch.setattr(lasmp.train_cfg, "_installed", lambda package: True)
     monkeypatch.setenv("NEPTUNE_API_TOKEN", "token")
     monkeypatch.setenv("NEPTUNE_USERNAME", "someone")
     for name, writer in (("wandb", WandbLogWriter), ("neptune", NeptuneLogWriter)):
-        entry = rsl_rl_cfg(to_train_cfg(tiny(tmp_path, logger=name, **{f"{name}_project": "p"})))["logger"]
+        entry = rsl_rl_cfg(
+            tiny(tmp_path, precision="float32", runner={"logger": name, f"{name}_project": "p"})
+        )["logger"]
         assert entry == {"class_name": writer.__name__, "project_name": "p"}
         assert resolve_class(entry) == (writer, {"project_name": "p"})
 
@@ -152,7 +144,7 @@ def wandb_records(path: Path):
 
 def test_wandb_offline_run_holds_config_and_every_scalar(tmp_path, offline_wandb, monkeypatch):
     run = tmp_path / "run"
-    train(tiny(run, logger="wandb", wandb_project="lasmp-test"))
+    train(tiny(run, precision="float32", runner={"logger": "wandb", "wandb_project": "lasmp-test"}))
 
     (run_dir,) = offline_wandb.glob("offline-run-*")
     (log,) = run_dir.glob("run-*.wandb")
@@ -193,7 +185,7 @@ def test_neptune_offline_run_holds_every_scalar(tmp_path, monkeypatch):
     monkeypatch.setenv("NEPTUNE_API_TOKEN", "ANONYMOUS")  # rsl_rl's writer wants both; offline uses neither
     monkeypatch.setenv("NEPTUNE_USERNAME", "lasmp-test")
     run = tmp_path / "run"
-    train(tiny(run, logger="neptune"))
+    train(tiny(run, precision="float32", runner={"logger": "neptune"}))
 
     (log,) = root.glob("offline/run__*/data-*.log")
     logged: dict[int, dict[str, float]] = {}

@@ -13,6 +13,7 @@ import pytest
 import torch
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
+from testkit import tiny
 
 from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint, read_checkpoint
 from lasmp.config import ConfigError
@@ -22,18 +23,6 @@ from lasmp.train_cfg import register_configs, to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
 register_configs()
-
-
-def tiny(tmp_path, **over):
-    cfg = {
-        "env": {"num_envs": 4},
-        "runner": {"max_iterations": 2, "log_dir": str(tmp_path), "save_interval": 1},
-        "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
-        "algo": {"num_mini_batches": 2, "num_learning_epochs": 1},
-        "torch_threads": 1,
-    }
-    cfg = OmegaConf.merge(OmegaConf.create(cfg), OmegaConf.create(over))
-    return to_train_cfg(cfg)
 
 
 def params(module):

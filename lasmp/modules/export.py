@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 METADATA_VERSION = 1  # bump when a key changes meaning or disappears (docs/deploy.md lists them)
 BODY_FRAME = "trunk (body) frame at the IMU/trunk origin: x forward, y left, z up"
 
-# o_t, slot by slot, as `lasmp.envs.robot.proprioception` builds it (tests/test_export.py holds the
+# o_t, slot by slot, as `lasmp.envs.robot.proprioception` builds it (tests/modules/test_export.py holds the
 # two together); `components` name each column, `start` is the first column of the slot in o_t
 _OBS_SLOTS: tuple[tuple[str, tuple[str, ...], str, str, str], ...] = (
     (

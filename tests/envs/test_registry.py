@@ -13,7 +13,7 @@ from lasmp.config import ConfigError, build_env_cfg
 from lasmp.envs import registry
 from lasmp.train_cfg import TASKS, register_configs
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_every_task_yaml_names_a_registered_task_and_every_task_has_one():

@@ -16,28 +16,17 @@ import numpy as np
 import pytest
 import torch
 from omegaconf import OmegaConf
+from testkit import tiny
 
 from lasmp.algo.checkpoint import atomic_torch_save, read_checkpoint
 from lasmp.plainstate import unpack
 from lasmp.train import make_runner, train
-from lasmp.train_cfg import to_train_cfg
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def tiny(tmp_path, **over):
-    cfg = {
-        "env": {"num_envs": 4},
-        "runner": {"max_iterations": 2, "log_dir": str(tmp_path), "save_interval": 1, "num_steps_per_env": 5},
-        "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
-        "algo": {"num_mini_batches": 2, "num_learning_epochs": 1},
-        "torch_threads": 1,
-    }
-    return to_train_cfg(OmegaConf.merge(OmegaConf.create(cfg), OmegaConf.create(over)))
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_gae_matches_a_computation_by_hand_with_terminations_and_time_outs(tmp_path):
-    runner = make_runner(tiny(tmp_path), None)
+    runner = make_runner(tiny(tmp_path, steps=5), None)
     alg, env = runner.alg, runner.env
     gamma, lam = alg.gamma, alg.lam
     steps = runner.cfg["num_steps_per_env"]
@@ -90,7 +79,7 @@ def test_non_finite_loss_raises_naming_it_and_saves_nothing(tmp_path, monkeypatc
     real = PPO.update
     # rsl_rl's PPO update diverges
     monkeypatch.setattr(PPO, "update", lambda self: {**real(self), "value": float("nan")})
-    runner = make_runner(tiny(tmp_path), str(tmp_path))
+    runner = make_runner(tiny(tmp_path, steps=5), str(tmp_path))
     assert "update" not in vars(runner.alg)  # the runner leaves the learner's update alone
     with pytest.raises(FloatingPointError, match=r"non-finite loss .*'value': nan"):
         runner.learn(2)
@@ -98,7 +87,7 @@ def test_non_finite_loss_raises_naming_it_and_saves_nothing(tmp_path, monkeypatc
 
 
 def test_non_finite_parameter_raises_and_never_overwrites_a_good_checkpoint(tmp_path, monkeypatch):
-    runner = make_runner(tiny(tmp_path), str(tmp_path))
+    runner = make_runner(tiny(tmp_path, steps=5), str(tmp_path))
     good = tmp_path / "model_0.pt"
     runner.save(str(good))
     before = good.read_bytes()
@@ -123,7 +112,7 @@ def test_non_finite_parameter_raises_and_never_overwrites_a_good_checkpoint(tmp_
 
 
 def test_a_save_killed_mid_write_leaves_the_previous_checkpoint_intact(tmp_path):
-    train(tiny(tmp_path, runner={"max_iterations": 1}))
+    train(tiny(tmp_path, steps=5, runner={"max_iterations": 1}))
     target = tmp_path / "model_0.pt"
     before = target.read_bytes()
     # a subprocess starts overwriting model_0.pt through the atomic writer and is killed mid-write
@@ -153,7 +142,7 @@ def test_a_save_killed_mid_write_leaves_the_previous_checkpoint_intact(tmp_path)
 
 
 def test_checkpoints_carry_random_states_and_a_resume_continues_the_streams(tmp_path):
-    runner = make_runner(tiny(tmp_path), None)
+    runner = make_runner(tiny(tmp_path, steps=5), None)
     runner.env.rng.random(7)  # move the env's numpy stream away from its seed
     torch.rand(3)
     runner.save(str(tmp_path / "model_3.pt"))
@@ -161,7 +150,7 @@ def test_checkpoints_carry_random_states_and_a_resume_continues_the_streams(tmp_
     data = read_checkpoint(tmp_path / "model_3.pt")
     assert {"torch", "numpy_env"} <= set(data["rng_state"])
 
-    resumed = make_runner(tiny(tmp_path / "b"), None)
+    resumed = make_runner(tiny(tmp_path / "b", steps=5), None)
     torch.rand(10)  # whatever happened before the load does not matter
     resumed.load(str(tmp_path / "model_3.pt"))
     assert torch.equal(torch.rand(4), next_torch)
@@ -169,12 +158,12 @@ def test_checkpoints_carry_random_states_and_a_resume_continues_the_streams(tmp_
 
 
 def test_a_checkpoint_without_random_states_still_loads(tmp_path):
-    runner = make_runner(tiny(tmp_path), None)
+    runner = make_runner(tiny(tmp_path, steps=5), None)
     runner.save(str(tmp_path / "model_1.pt"))
     data = read_checkpoint(tmp_path / "model_1.pt")
     del data["rng_state"], data["path"]
     atomic_torch_save(data, tmp_path / "model_2.pt")  # as written before random states were saved
-    make_runner(tiny(tmp_path / "b"), None).load(str(tmp_path / "model_2.pt"))
+    make_runner(tiny(tmp_path / "b", steps=5), None).load(str(tmp_path / "model_2.pt"))
 
 
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
@@ -265,9 +254,11 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
         }
     # algo: the estimate-rollout schedule switches within the run, so the resume must get it right too
     algo = {"estimate_rollout_every": 2, "estimate_rollout_start": 1}
-    straight = train(tiny(tmp_path / "a", runner={"max_iterations": 4}, algo=algo, **over))
+    straight = train(tiny(tmp_path / "a", steps=5, runner={"max_iterations": 4}, algo=algo, **over))
     resume = str(tmp_path / "a" / "model_1.pt")
-    resumed = train(tiny(tmp_path / "b", runner={"max_iterations": 2}, algo=algo, resume=resume, **over))
+    resumed = train(
+        tiny(tmp_path / "b", steps=5, runner={"max_iterations": 2}, algo=algo, resume=resume, **over)
+    )
     assert resumed.current_learning_iteration == straight.current_learning_iteration == 3
     a, b = read_checkpoint(tmp_path / "a" / "model_3.pt"), read_checkpoint(tmp_path / "b" / "model_3.pt")
     for key in ("actor_state_dict", "critic_state_dict"):
@@ -280,7 +271,7 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
     # (rsl-rl-lib before 5.4.2 reset it on load): at the resume and, so, at the end
     saved_lr = read_checkpoint(resume)["optimizer_state_dict"]["param_groups"][0]["lr"]
     assert saved_lr != pytest.approx(1e-3)  # the schedule moved it in the first 2 iterations
-    probe = make_runner(tiny(tmp_path / "p", algo=algo, **over), None)
+    probe = make_runner(tiny(tmp_path / "p", steps=5, algo=algo, **over), None)
     probe.load(resume)
     assert probe.alg.learning_rate == saved_lr
     assert all(group["lr"] == saved_lr for group in probe.alg.optimizer.param_groups)
@@ -292,7 +283,7 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
     assert torch.equal(log_a["length"], log_b["length"])
     assert log_a["rewards"] == log_b["rewards"] and log_a["lengths"] == log_b["lengths"]
     # control: the same resume with the envs restarting their episodes is *not* the same run
-    control = make_runner(tiny(tmp_path / "c", algo=algo, **over), None)
+    control = make_runner(tiny(tmp_path / "c", steps=5, algo=algo, **over), None)
     control.load(
         resume,
         load_cfg={

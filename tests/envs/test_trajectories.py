@@ -13,7 +13,7 @@ from scipy.spatial import Delaunay
 
 from lasmp.envs import trajectories as T
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

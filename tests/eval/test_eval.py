@@ -19,7 +19,7 @@ from lasmp.eval import episodes as ep
 from lasmp.eval.metrics import ALL_METRICS, EpisodeMetrics, TrunkPose, rotation_angle, summarize
 from lasmp.eval.run import BenchmarkSource
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 H = 0.37
 
 

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import pytest
 import torch
-from omegaconf import OmegaConf
+from testkit import tiny
 
 from lasmp.algo import precision as prec
 from lasmp.algo.precision import cpu_has_fast_bf16, resolve_precision
 from lasmp.config import ConfigError
 from lasmp.train import make_runner, train
-from lasmp.train_cfg import to_train_cfg
 
 AVX2_ONLY = """processor\t: 0
 vendor_id\t: AuthenticAMD
@@ -19,17 +18,6 @@ model name\t: AMD EPYC
 flags\t\t: fpu vme sse sse2 ssse3 fma sse4_1 sse4_2 avx avx2 bmi1 bmi2
 bogomips\t: 4899.99
 """
-
-
-def tiny(tmp_path, **over):  # as tests/test_train.py's
-    cfg = {
-        "env": {"num_envs": 4},
-        "runner": {"max_iterations": 2, "log_dir": str(tmp_path), "save_interval": 1},
-        "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
-        "algo": {"num_mini_batches": 2, "num_learning_epochs": 1},
-        "torch_threads": 1,
-    }
-    return to_train_cfg(OmegaConf.merge(OmegaConf.create(cfg), OmegaConf.create(over)))
 
 
 def test_bf16_detection_reads_the_cpu_flags():

@@ -13,42 +13,16 @@ import numpy as np
 import pytest
 import torch
 from hydra import compose, initialize_config_dir
-from omegaconf import OmegaConf
 from tensordict import TensorDict
+from testkit import hostile_checkpoint, tiny
 
-from lasmp.algo.checkpoint import CHECKPOINT_FORMAT, CheckpointError, convert_trusted, read_checkpoint
+from lasmp.algo.checkpoint import CheckpointError, convert_trusted, read_checkpoint
 from lasmp.plainstate import PlainStateError, pack, unpack
 from lasmp.train import make_runner, train
-from lasmp.train_cfg import register_configs, to_train_cfg
+from lasmp.train_cfg import register_configs
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 register_configs()
-
-
-class _Payload:
-    """Unpickling this writes `marker`: what a hostile checkpoint would do (any code could run)."""
-
-    def __init__(self, marker: Path):
-        self.marker = str(marker)
-
-    def __reduce__(self):
-        return (exec, (f"open({self.marker!r}, 'w').write('ran')",))
-
-
-def hostile_checkpoint(path: Path, marker: Path) -> Path:
-    """A file that the old loader (weights_only=False) accepted as a checkpoint, with a payload."""
-    data = {
-        "format": CHECKPOINT_FORMAT,
-        "actor_state_dict": {},
-        "critic_state_dict": {},
-        "config": {},
-        "obs_layout": {},
-        "num_actions": 12,
-        "iter": 0,
-        "env_state": {"payload": _Payload(marker)},
-    }
-    torch.save(data, path)
-    return path
 
 
 ENTRY_POINTS = {
@@ -92,17 +66,6 @@ def test_the_old_loader_would_have_run_the_payload(tmp_path):
     marker = tmp_path / "marker"
     torch.load(hostile_checkpoint(tmp_path / "m.pt", marker), weights_only=False)
     assert marker.exists()
-
-
-def tiny(tmp_path, **over):
-    cfg = {
-        "env": {"num_envs": 4},
-        "runner": {"max_iterations": 2, "log_dir": str(tmp_path), "save_interval": 1, "num_steps_per_env": 5},
-        "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
-        "algo": {"num_mini_batches": 2, "num_learning_epochs": 1},
-        "torch_threads": 1,
-    }
-    return to_train_cfg(OmegaConf.merge(OmegaConf.create(cfg), OmegaConf.create(over)))
 
 
 @pytest.mark.parametrize("task", ["moving_platform", "rough_static"])
@@ -186,7 +149,7 @@ def test_plain_state_refuses_a_class_the_live_env_does_not_hold():
 
 
 def test_an_older_pickled_checkpoint_is_refused_with_the_convert_command_and_converts_on_trust(tmp_path):
-    runner = train(tiny(tmp_path / "run"))
+    runner = train(tiny(tmp_path / "run", steps=5))
     env = runner.env
     data = torch.load(tmp_path / "run" / "model_1.pt", weights_only=True)
     # the format before plain state (2): the running state's objects pickled as they are
@@ -212,7 +175,7 @@ def test_an_older_pickled_checkpoint_is_refused_with_the_convert_command_and_con
     )
     assert refused.returncode == 2 and "--trust" in refused.stderr and not (tmp_path / "new.pt").exists()
     convert_trusted(tmp_path / "old.pt", tmp_path / "new.pt")
-    fresh = make_runner(tiny(tmp_path / "fresh"), None)
+    fresh = make_runner(tiny(tmp_path / "fresh", steps=5), None)
     fresh.load(str(tmp_path / "new.pt"))  # the converted running state restores
     assert fresh.current_learning_iteration == 2
     assert torch.equal(fresh.env.episode_length_buf, env.episode_length_buf)

@@ -14,7 +14,7 @@ import pytest
 from lasmp.config import DomainRandCfg
 from lasmp.eval import benchmark as B
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 M, R = 64, 16
 
 

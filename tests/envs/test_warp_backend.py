@@ -33,7 +33,7 @@ PLATFORM = PlatformCfg()
 # the step-by-step parity test compares the two solvers where both converge within their tolerance:
 # MuJoCo's pyramidal cone without no-slip passes. With the default elliptic cone and no-slip passes
 # the solver stops at its iteration limit, and relaxing C MuJoCo's tolerance no longer measures how
-# far the backends may differ; the benchmark-level agreement (tests/test_warp_env.py) covers those.
+# far the backends may differ; the benchmark-level agreement (tests/envs/test_warp_env.py) covers those.
 PARITY_SIM = SimCfg(cone="pyramidal", noslip_iterations=0)
 POLICY_DT_S = SIM.dt_s * SIM.decimation
 

@@ -12,18 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from omegaconf import OmegaConf
+from testkit import tiny
 
 from lasmp.algo.checkpoint import read_checkpoint
 
-ROOT = Path(__file__).resolve().parents[1]
-WORKER = ROOT / "tests" / "helpers" / "dist_worker.py"
-TINY = {
-    "env": {"num_envs": 4},
-    "runner": {"max_iterations": 3, "save_interval": 1, "num_steps_per_env": 5},
-    "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
-    "algo": {"num_mini_batches": 2, "num_learning_epochs": 1, "precision": "float32"},
-    "torch_threads": 1,
-}
+ROOT = Path(__file__).resolve().parents[2]
+WORKER = ROOT / "tests" / "algo" / "dist_worker.py"
 
 
 def torchrun(*args, timeout=300, **kwargs) -> subprocess.CompletedProcess:
@@ -60,7 +55,8 @@ def assert_same_parameters(ranks: list[dict]) -> None:
 @pytest.fixture(scope="module")
 def two_ranks(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("dp")
-    cfg = {**TINY, "runner": {**TINY["runner"], "log_dir": str(tmp / "run")}}
+    tiny_run = tiny(tmp / "run", steps=5, precision="float32", plain=True, runner={"max_iterations": 3})
+    cfg = OmegaConf.to_container(tiny_run)
     ranks, stdout = run_worker(tmp, cfg, tmp / "out")
     return tmp, cfg, ranks, stdout
 

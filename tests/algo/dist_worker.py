@@ -1,6 +1,6 @@
-"""One rank of a tiny data-parallel training, run by tests/test_distributed.py under torchrun.
+"""One rank of a tiny data-parallel training, run by tests/algo/test_distributed.py under torchrun.
 
-    python -m torch.distributed.run --standalone --nproc_per_node=2 tests/helpers/dist_worker.py CFG_JSON OUT_DIR
+    python -m torch.distributed.run --standalone --nproc_per_node=2 tests/algo/dist_worker.py CFG_JSON OUT_DIR
 
 Trains with the JSON config (merged into the TrainCfg defaults), then every rank writes what the
 test compares: its actor's and critic's parameters (normalizers included), its curriculum state

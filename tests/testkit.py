@@ -1,0 +1,69 @@
+"""What several test modules build: the tiny training configuration and a hostile checkpoint.
+
+A plain module (pytest's `pythonpath` puts tests/ on sys.path): `from testkit import tiny`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+
+from lasmp.algo.checkpoint import CHECKPOINT_FORMAT
+from lasmp.train_cfg import TrainCfg, to_train_cfg
+
+# 4 envs, small networks, 2 iterations, a checkpoint every iteration
+TINY = {
+    "env": {"num_envs": 4},
+    "runner": {"max_iterations": 2, "save_interval": 1},
+    "policy": {"actor_hidden_dims": [32, 32, 32], "critic_hidden_dims": [32, 32]},
+    "algo": {"num_mini_batches": 2, "num_learning_epochs": 1},
+    "torch_threads": 1,
+}
+
+
+def tiny(
+    log_dir: Path | str,
+    *,
+    steps: int | None = None,
+    precision: str | None = None,
+    plain: bool = False,
+    **over,
+) -> TrainCfg | DictConfig:
+    """The tiny training logging into `log_dir`, with `over` (e.g. runner={...}, algo={...}, seed=3)
+    merged in: a validated TrainCfg, or with `plain` the OmegaConf config before validation.
+    `steps` sets runner.num_steps_per_env and `precision` algo.precision; left out, the TrainCfg
+    defaults apply."""
+    base = {**TINY, "runner": {**TINY["runner"], "log_dir": str(log_dir)}, "algo": dict(TINY["algo"])}
+    if steps is not None:
+        base["runner"]["num_steps_per_env"] = steps
+    if precision is not None:
+        base["algo"]["precision"] = precision
+    cfg = OmegaConf.merge(OmegaConf.create(base), OmegaConf.create(over))
+    return cfg if plain else to_train_cfg(cfg)
+
+
+class _Payload:
+    """Unpickling this writes `marker`: what a hostile checkpoint would do (any code could run)."""
+
+    def __init__(self, marker: Path):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (exec, (f"open({self.marker!r}, 'w').write('ran')",))
+
+
+def hostile_checkpoint(path: Path, marker: Path) -> Path:
+    """A file that the old loader (weights_only=False) accepted as a checkpoint, with a payload."""
+    data = {
+        "format": CHECKPOINT_FORMAT,
+        "actor_state_dict": {},
+        "critic_state_dict": {},
+        "config": {},
+        "obs_layout": {},
+        "num_actions": 12,
+        "iter": 0,
+        "env_state": {"payload": _Payload(marker)},
+    }
+    torch.save(data, path)
+    return path

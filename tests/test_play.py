@@ -1,7 +1,9 @@
-"""play.py: deployment-mode rollouts from a checkpoint's own config, rendering, export, errors."""
+"""play.py: deployment-mode rollouts from a checkpoint's own config, rendering, export, errors; the curriculum probe."""
 
 from __future__ import annotations
 
+import importlib.util
+import json
 import os
 import subprocess
 import sys
@@ -404,3 +406,23 @@ def test_render_model_of_rough_static_task():
     decor = [i for i, name in enumerate(_geom_names(model)) if name.startswith(DECOR_PREFIX)]
     assert decor and (model.geom_contype[decor] == 0).all() and (model.geom_conaffinity[decor] == 0).all()
     assert not any(name.startswith(DECOR_PREFIX) for name in _geom_names(env.sim.model))
+
+
+def test_curriculum_probe_plays_one_episode_per_env_and_zero_noise_sampling_equals_the_mean(
+    run_dir, tmp_path
+):
+    spec = importlib.util.spec_from_file_location(
+        "curriculum_probe", ROOT / "scripts" / "curriculum_probe.py"
+    )
+    probe = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(probe)
+    out = tmp_path / "probe.json"
+    assert probe.main([str(run_dir), "--envs", "2", "--std-scales", "0", "--json", str(out)]) == 0
+    results = json.loads(out.read_text())
+    modes = ("mean", "sampled", "sampled_std_x0", "stand_still")
+    assert all(results[m]["episodes"] == 2 and results[m]["level"] == 5 for m in modes)
+    # the same envs and seed in every mode: with the std scaled to 0 the draws are the mean actions
+    assert results["sampled_std_x0"] == results["mean"]
+    with pytest.raises(SystemExit) as err:
+        probe.main([str(run_dir), "--envs", "0"])
+    assert err.value.code == 2

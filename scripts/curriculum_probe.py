@@ -1,0 +1,110 @@
+"""Why a run's curriculum does not promote: the success rate at its level, three ways.
+
+    python scripts/curriculum_probe.py CHECKPOINT [--envs 512] [--seed 0] [--std-scales 0.5 ...] [--json out.json]
+
+The curriculum promotes on the success rate (time-out without a collision) of the *training*
+rollouts: the stochastic policy, on the training distribution at the checkpoint's level. This
+plays one full episode per env of that same distribution (the checkpoint's curriculum and random
+state, training ranges and domain randomization) with
+- `mean`: the deployed policy's mean action (what evaluate.py measures),
+- `sampled`: actions drawn from the policy's Gaussian with its trained std (what training sees),
+  and, with `--std-scales`, with that std scaled (how much noise the level tolerates),
+- `stand_still`: a = 0,
+and prints each success rate with its binomial standard error, and the first-contact causes.
+A gap between `mean` and `sampled` is the exploration noise's share of the failures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import math
+import sys
+from pathlib import Path
+
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from lasmp.deploy import load_deploy_env  # noqa: E402
+
+
+def first_episodes(env, act, steps: int) -> dict:
+    """Play `steps` policy steps from a fresh reset; each env's first episode's outcome."""
+    n = env.num_envs
+    outcome = torch.full((n,), -1, dtype=torch.int8)  # -1 running, 0 collided, 1 timed out
+    ended_at = torch.zeros(n, dtype=torch.int64)
+    obs = env.get_observations()
+    with torch.inference_mode():
+        for step in range(steps):
+            obs, _, dones, extras = env.step(act(obs))
+            new = dones & (outcome < 0)
+            outcome[new & extras["time_outs"]] = 1
+            outcome[new & ~extras["time_outs"]] = 0
+            ended_at[new] = step + 1
+            if bool((outcome >= 0).all()):
+                break
+    ended = outcome >= 0
+    k, m = int((outcome == 1).sum()), int(ended.sum())
+    p = k / m if m else math.nan
+    return {
+        "episodes": m,
+        "success_rate": p,
+        "stderr": math.sqrt(p * (1 - p) / m) if m else math.nan,
+        "mean_failure_step": float(ended_at[outcome == 0].float().mean()) if (outcome == 0).any() else None,
+    }
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("checkpoint")
+    p.add_argument("--envs", type=int, default=512)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--std-scales", type=float, nargs="*", default=[], help="extra sampled runs, std scaled")
+    p.add_argument("--json", type=Path)
+    args = p.parse_args(argv)
+    if args.envs < 1:
+        p.error(f"--envs must be >= 1, got {args.envs}")
+
+    if any(s < 0 for s in args.std_scales):
+        p.error("--std-scales must be >= 0")
+    modes = ["mean", "sampled", *(f"sampled_std_x{s:g}" for s in args.std_scales), "stand_still"]
+    results = {}
+    for mode in modes:
+        with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl's models print themselves
+            env, policy, cfg, data = load_deploy_env(args.checkpoint, num_envs=args.envs, seed=args.seed)
+        torch.manual_seed(args.seed)
+        std = policy.distribution.std_param.detach().clone()
+        if mode == "mean":
+            act = policy
+        elif mode.startswith("sampled"):
+            scale = float(mode.removeprefix("sampled_std_x") or 1.0) if mode != "sampled" else 1.0
+
+            def act(obs, policy=policy, std=std * scale):
+                mean = policy(obs)
+                return mean + std * torch.randn_like(mean)
+        else:
+
+            def act(obs, n=env.num_envs, a=int(data["num_actions"])):
+                return torch.zeros(n, a)
+
+        level = env.curriculum.level if env.curriculum is not None else None  # its episodes' level
+        results[mode] = first_episodes(env, act, int(env.max_episode_length) + 1)
+        results[mode]["level"] = level
+        r = results[mode]
+        print(
+            f"{mode:12s} level {level}: success {r['success_rate']:.3f} ± {r['stderr']:.3f} "
+            f"over {r['episodes']} episodes (mean failure at step {r['mean_failure_step']})",
+            flush=True,
+        )
+    results["action_std"] = [round(float(s), 4) for s in std]
+    print("trained action std:", results["action_std"])
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

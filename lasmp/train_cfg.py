@@ -49,7 +49,9 @@ class PolicyCfg:
     explicit: str = "all"  # explicit estimator outputs: all | no_platform | none
     history_input: bool = False  # the raw observation history is an actor input
     command_input: bool = False  # a velocity command (group `command`) is an actor input (R-S baseline)
-    init_noise_std: float = 1.0
+    # (ours) the policy's initial action std, 0.5 (rsl_rl's default is 1.0): the curriculum judges the
+    # sampled rollouts, and at 1.0 the noise kept it at level 5 (docs/method.md, curriculum)
+    init_noise_std: float = 0.5
 
 
 @dataclass

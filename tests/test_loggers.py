@@ -27,6 +27,9 @@ from lasmp.train_cfg import register_configs, rsl_rl_cfg
 
 register_configs()
 # scalars OneLineLogger writes every iteration (the episode extras come on top)
+# episodes of 0.3 s (15 policy steps) end in every 24-step iteration, so every iteration logs an
+# episode's mean reward, whatever the initial action noise
+SHORT_EPISODES = {"trajectory": {"duration_s": 0.3}}
 EVERY_ITERATION = {
     "Loss/learning_rate",
     "Policy/mean_std",
@@ -144,7 +147,14 @@ def wandb_records(path: Path):
 
 def test_wandb_offline_run_holds_config_and_every_scalar(tmp_path, offline_wandb, monkeypatch):
     run = tmp_path / "run"
-    train(tiny(run, precision="float32", runner={"logger": "wandb", "wandb_project": "lasmp-test"}))
+    train(
+        tiny(
+            run,
+            precision="float32",
+            runner={"logger": "wandb", "wandb_project": "lasmp-test"},
+            env=SHORT_EPISODES,
+        )
+    )
 
     (run_dir,) = offline_wandb.glob("offline-run-*")
     (log,) = run_dir.glob("run-*.wandb")
@@ -185,7 +195,7 @@ def test_neptune_offline_run_holds_every_scalar(tmp_path, monkeypatch):
     monkeypatch.setenv("NEPTUNE_API_TOKEN", "ANONYMOUS")  # rsl_rl's writer wants both; offline uses neither
     monkeypatch.setenv("NEPTUNE_USERNAME", "lasmp-test")
     run = tmp_path / "run"
-    train(tiny(run, precision="float32", runner={"logger": "neptune"}))
+    train(tiny(run, precision="float32", runner={"logger": "neptune"}, env=SHORT_EPISODES))
 
     (log,) = root.glob("offline/run__*/data-*.log")
     logged: dict[int, dict[str, float]] = {}

@@ -166,11 +166,12 @@ def test_the_learner_counts_its_iterations_and_acts_on_the_estimates_on_schedule
 
 
 def test_a_learner_resumed_from_the_studys_checkpoint_goes_on_at_its_place_in_the_estimate_schedule():
-    """results/study's LAS-MP seed 0 stopped after iteration 449 of a schedule that acts on the
-    estimates from iteration 100 on, every iteration: it goes on at 450, on the estimates."""
+    """The study's first LAS-MP seed 0 (results/study/diagnosis/init_std1_seed0) stopped after
+    iteration 449 of a schedule that acts on the estimates from iteration 100 on, every iteration:
+    it goes on at 450, on the estimates."""
     from lasmp.algo.checkpoint import checkpoint_cfg
 
-    data = read_checkpoint(ROOT / "results" / "study" / "lasmp" / "seed0" / "model_449.pt")
+    data = read_checkpoint(ROOT / "results" / "study" / "diagnosis" / "init_std1_seed0" / "model_449.pt")
     cfg = checkpoint_cfg(data, num_envs=4, seed=0)
     assert (cfg.algo.estimate_rollout_start, cfg.algo.estimate_rollout_every) == (100, 1)
     runner = make_runner(cfg, None)

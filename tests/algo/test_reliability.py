@@ -253,9 +253,15 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
             "env": OmegaConf.to_container(base.env),
         }
     # algo: the estimate-rollout schedule switches within the run, so the resume must get it right too;
-    # float32 on every CPU, so that the adaptive schedule's first steps (asserted below) do not
-    # depend on whether `auto` took bfloat16 autocast
-    algo = {"estimate_rollout_every": 2, "estimate_rollout_start": 1, "precision": "float32"}
+    # float32 on every CPU, so that the adaptive schedule's first steps do not depend on whether
+    # `auto` took bfloat16 autocast; a tiny desired KL, so that the schedule surely moves the
+    # learning rate in them (asserted below)
+    algo = {
+        "estimate_rollout_every": 2,
+        "estimate_rollout_start": 1,
+        "precision": "float32",
+        "desired_kl": 1e-6,
+    }
     straight = train(tiny(tmp_path / "a", steps=5, runner={"max_iterations": 4}, algo=algo, **over))
     resume = str(tmp_path / "a" / "model_1.pt")
     resumed = train(

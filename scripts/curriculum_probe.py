@@ -28,6 +28,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from lasmp.atomic import atomic_open  # noqa: E402
 from lasmp.deploy import load_deploy_env  # noqa: E402
 
 
@@ -70,39 +71,41 @@ def main(argv=None) -> int:
 
     if any(s < 0 for s in args.std_scales):
         p.error("--std-scales must be >= 0")
-    modes = ["mean", "sampled", *(f"sampled_std_x{s:g}" for s in args.std_scales), "stand_still"]
+    # (name, std scale): scale None plays the mean action
+    modes = [("mean", None), ("sampled", 1.0), *((f"sampled_std_x{s:g}", s) for s in args.std_scales)]
     results = {}
-    for mode in modes:
+    for name, scale in [*modes, ("stand_still", None)]:
         with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl's models print themselves
-            env, policy, cfg, data = load_deploy_env(args.checkpoint, num_envs=args.envs, seed=args.seed)
+            env, policy, _, data = load_deploy_env(args.checkpoint, num_envs=args.envs, seed=args.seed)
         torch.manual_seed(args.seed)
-        std = policy.distribution.std_param.detach().clone()
-        if mode == "mean":
+        num_actions = int(data["num_actions"])
+        dist = policy.distribution
+        dist.update(torch.zeros(1, num_actions))  # rsl_rl's std, as its sampling takes it (clamped)
+        std = dist.std[0].detach().clone()
+        if name == "stand_still":
+
+            def act(obs, n=env.num_envs, a=num_actions):
+                return torch.zeros(n, a)
+        elif scale is None:
             act = policy
-        elif mode.startswith("sampled"):
-            scale = float(mode.removeprefix("sampled_std_x") or 1.0) if mode != "sampled" else 1.0
+        else:
 
             def act(obs, policy=policy, std=std * scale):
                 mean = policy(obs)
                 return mean + std * torch.randn_like(mean)
-        else:
-
-            def act(obs, n=env.num_envs, a=int(data["num_actions"])):
-                return torch.zeros(n, a)
 
         level = env.curriculum.level if env.curriculum is not None else None  # its episodes' level
-        results[mode] = first_episodes(env, act, int(env.max_episode_length) + 1)
-        results[mode]["level"] = level
-        r = results[mode]
+        r = results[name] = {**first_episodes(env, act, int(env.max_episode_length) + 1), "level": level}
         print(
-            f"{mode:12s} level {level}: success {r['success_rate']:.3f} ± {r['stderr']:.3f} "
+            f"{name:12s} level {level}: success {r['success_rate']:.3f} ± {r['stderr']:.3f} "
             f"over {r['episodes']} episodes (mean failure at step {r['mean_failure_step']})",
             flush=True,
         )
     results["action_std"] = [round(float(s), 4) for s in std]
     print("trained action std:", results["action_std"])
     if args.json:
-        args.json.write_text(json.dumps(results, indent=2) + "\n")
+        with atomic_open(args.json, "w") as f:
+            f.write(json.dumps(results, indent=2) + "\n")
     return 0
 
 

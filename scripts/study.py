@@ -4,16 +4,25 @@
     python scripts/study.py train METHOD SEED [--until N]   # train (or resume) to N iterations (default 450)
     python scripts/study.py evaluate METHOD SEED [--at N]    # all of Xi_eval on model_<N-1>.pt
     python scripts/study.py next                      # the first unfinished step, trained or evaluated
+    python scripts/study.py summary                   # results/study/summary.json from what is evaluated
 
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
 appended to runs/study/<method>/seed<k>.commands before it runs, so a run can be continued in a
-later sitting. Evaluations go to results/study/<method>[@<N>]/seed<k>/ (committed). Every run has
+later sitting. Evaluations go to results/study/<method>[@<N>]/seed<k>/ (committed), with the run's
+learning curve (`curves_<N>.json`: lasmp.eval.curves' windows of 10 iterations). Every run has
 the same budget: 450 iterations x 1,024 envs (the cpu preset), in the default configuration.
+
+LAS-MP's seeds come first (the headline row, and the fast learner's side of the comparison below).
+`lasmp_float32` is issue 24's check that the fast learner (`algo.precision=auto`, the default) learns
+as float32 does: LAS-MP with `algo.precision=float32`, seeds 0 and 1, scored on Xi_eval's first
+2,000 episodes (the fast runs' on the same episodes: `python -m lasmp.eval.breakdown DIR --episodes
+2000`).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import shlex
 import subprocess
@@ -36,6 +45,23 @@ METHODS = {
     "no_explicit_estimator_history": ["policy=no_explicit_estimator_history"],
     "rs": ["task=rough_static"],
 }
+FLOAT32 = "lasmp_float32"  # the fast-learner comparison: not a row of the results table
+FLOAT32_SEEDS = (0, 1)
+FLOAT32_EPISODES = 2000
+OVERRIDES = {**METHODS, FLOAT32: ["algo.precision=float32"]}
+# the results table's rows: name -> (method, iterations, controller); Stand Still has no seeds
+ROWS = {
+    "LAS-MP": ("lasmp", BUDGET, None),
+    "LAS-MP (1,000 it.)": ("lasmp", HEADLINE, None),
+    "LAS-MP, centre reward": ("lasmp_centre", BUDGET, None),
+    "w/o alignment command": ("no_alignment_command", BUDGET, None),
+    "w/o platform velocity estimates": ("no_platform_velocity_estimates", BUDGET, None),
+    "w/o explicit estimator": ("no_explicit_estimator", BUDGET, None),
+    "w/o explicit estimator history": ("no_explicit_estimator_history", BUDGET, None),
+    "R-S": ("rs", BUDGET, "rs"),
+    "R-S (oracle)": ("rs", BUDGET, "rs_oracle"),
+}
+STAND_STILL = RESULTS / "stand_still" / "seed0"
 
 
 def run_dir(method: str, seed: int) -> Path:
@@ -61,11 +87,12 @@ def train(method: str, seed: int, until: int = BUDGET) -> None:
     done = last_iteration(d) + 1
     if done >= until:
         print(f"{method} seed {seed}: {done} iterations done (>= {until})")
+        write_curves(method, seed, until)
         return
     cmd = [
         sys.executable,
         "train.py",
-        *METHODS[method],
+        *OVERRIDES[method],
         f"seed={seed}",
         "runner.save_interval=25",
         f"runner.log_dir={d.relative_to(ROOT)}",
@@ -75,6 +102,21 @@ def train(method: str, seed: int, until: int = BUDGET) -> None:
     else:
         cmd += [f"runner.max_iterations={until}"]
     execute(cmd, d.with_suffix(".commands"))
+    write_curves(method, seed, until)
+
+
+def write_curves(method: str, seed: int, at: int) -> None:
+    """The run's learning curve to 'at' iterations (windows of 10) beside its evaluation."""
+    from lasmp.eval.curves import read_scalars, truncated, windows
+    from lasmp.eval.report import atomic_write_text
+
+    out = result_dir(method, seed, at) / f"curves_{at}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    rows = windows(truncated(read_scalars(run_dir(method, seed)), at - 1), 10)
+    atomic_write_text(
+        out, json.dumps({"run_dir": str(run_dir(method, seed).relative_to(ROOT)), "windows": rows})
+    )
+    print(f"wrote {out.relative_to(ROOT)}")
 
 
 def result_dir(method: str, seed: int, at: int, controller: str | None = None) -> Path:
@@ -82,12 +124,16 @@ def result_dir(method: str, seed: int, at: int, controller: str | None = None) -
     return RESULTS / (name if at == BUDGET else f"{name}@{at}") / f"seed{seed}"
 
 
+def controllers(method: str) -> list[str | None]:
+    return ["rs", "rs_oracle"] if method == "rs" else [None]
+
+
 def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
     ckpt = run_dir(method, seed) / f"model_{at - 1}.pt"
     if not ckpt.exists():
         raise SystemExit(f"{ckpt} does not exist: train {method} seed {seed} to {at} iterations first")
-    controllers = ["rs", "rs_oracle"] if method == "rs" else [None]
-    for controller in controllers:
+    first = ["--num-trajectories", str(FLOAT32_EPISODES)] if method == FLOAT32 else []
+    for controller in controllers(method):
         out = result_dir(method, seed, at, controller)
         if (out / "metrics.json").exists():
             print(f"{out} done")
@@ -100,16 +146,18 @@ def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
             "--out",
             str(out.relative_to(ROOT)),
             "--no-platform-probe",  # the probe doubles an evaluation's cost; Stand Still's run has it
+            *first,
         ] + (["--controller", controller] if controller else [])
         execute(cmd, run_dir(method, seed).with_suffix(".commands"))
 
 
 def steps():
     """Every step of the study in order: (kind, method, seed, iterations)."""
-    for seed in SEEDS:
-        for method in METHODS:
-            yield "train", method, seed, BUDGET
-            yield "evaluate", method, seed, BUDGET
+    order = [("lasmp", s) for s in SEEDS] + [(FLOAT32, s) for s in FLOAT32_SEEDS]
+    order += [(m, s) for s in SEEDS for m in METHODS if m != "lasmp"]
+    for method, seed in order:
+        yield "train", method, seed, BUDGET
+        yield "evaluate", method, seed, BUDGET
     for seed in SEEDS:
         yield "train", "lasmp", seed, HEADLINE
         yield "evaluate", "lasmp", seed, HEADLINE
@@ -118,8 +166,18 @@ def steps():
 def is_done(kind: str, method: str, seed: int, at: int) -> bool:
     if kind == "train":
         return last_iteration(run_dir(method, seed)) + 1 >= at
-    outs = [result_dir(method, seed, at, c) for c in (["rs", "rs_oracle"] if method == "rs" else [None])]
-    return all((o / "metrics.json").exists() for o in outs)
+    return all((result_dir(method, seed, at, c) / "metrics.json").exists() for c in controllers(method))
+
+
+def summary_args() -> list[str]:
+    """results_table's --method groups: every row with at least one evaluated seed, and Stand Still."""
+    args = []
+    for name, (method, at, controller) in ROWS.items():
+        dirs = [result_dir(method, s, at, controller) for s in SEEDS]
+        dirs = [str(d.relative_to(ROOT)) for d in dirs if (d / "metrics.json").exists()]
+        if dirs:
+            args += ["--method", name, *dirs]
+    return args + ["--method", "Stand Still", str(STAND_STILL.relative_to(ROOT))]
 
 
 def main(argv=None) -> None:
@@ -127,9 +185,10 @@ def main(argv=None) -> None:
     sub = p.add_subparsers(dest="cmd", required=True)
     sub.add_parser("plan")
     sub.add_parser("next")
+    sub.add_parser("summary")
     for name in ("train", "evaluate"):
         s = sub.add_parser(name)
-        s.add_argument("method", choices=sorted(METHODS))
+        s.add_argument("method", choices=sorted(OVERRIDES))
         s.add_argument("seed", type=int, choices=SEEDS)
         s.add_argument("--until" if name == "train" else "--at", type=int, default=BUDGET, dest="n")
     args = p.parse_args(argv)
@@ -142,6 +201,10 @@ def main(argv=None) -> None:
                 (train if kind == "train" else evaluate)(method, seed, n)
                 return
         print("the study is complete")
+    elif args.cmd == "summary":
+        from lasmp.eval import results_table
+
+        raise SystemExit(results_table.main([*summary_args(), "--json", str(RESULTS / "summary.json")]))
     elif args.cmd == "train":
         train(args.method, args.seed, args.n)
     else:

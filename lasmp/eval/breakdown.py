@@ -1,6 +1,6 @@
 """Where a method fails: the collision rate of an evaluation broken down by episode, from episodes.csv.
 
-    python -m lasmp.eval.breakdown DIR [--plot out.png] [--late-s 8]
+    python -m lasmp.eval.breakdown DIR [--plot out.png] [--late-s 8] [--episodes K]
 
 Reads DIR/episodes.csv (written by evaluate.py) and prints, as Markdown tables, the collision rate
 (with the episode count behind it) by number of waypoints N, by the platform's maximum tilt (bins of
@@ -10,6 +10,8 @@ and the share of failures that come after --late-s seconds (8 by default: the pl
 still converging to its last waypoint when the episode ends). `--plot` draws the first three
 breakdowns and the failure times (matplotlib; without it the plot is skipped
 with a note). The tilt and forced tables need the probe's columns; without them they say so.
+`--episodes K` keeps Xi_eval's first K episodes (episode < K), so that an evaluation of all 10,000
+compares with one of the first K (episode k is the same trajectory and robot in both).
 """
 
 from __future__ import annotations
@@ -48,6 +50,14 @@ def primary_cause(cause: str) -> str:
     return (
         first.split("_", 1)[1] if first.count("_") == 1 and first[:2] in ("FR", "FL", "RR", "RL") else first
     )
+
+
+def first_episodes(t: dict[str, np.ndarray], k: int) -> dict[str, np.ndarray]:
+    """The rows of episodes 0..k-1; refuses a table that lacks any of them."""
+    keep = t["episode"] < k
+    if int(keep.sum()) != k:
+        raise EpisodesFileError(f"asked for the first {k} episodes, the file has {int(keep.sum())} of them")
+    return {c: v[keep] for c, v in t.items()}
 
 
 def breakdown(t: dict[str, np.ndarray], late_s: float = 8.0) -> dict:
@@ -180,9 +190,14 @@ def main(argv=None) -> int:
     p.add_argument("dir", type=Path, help="an evaluation directory (evaluate.py --out), with episodes.csv")
     p.add_argument("--plot", type=Path, help="also draw the breakdown to this PNG")
     p.add_argument("--late-s", type=float, default=8.0, help="failures after this time count as late (s)")
+    p.add_argument("--episodes", type=int, metavar="K", help="only Xi_eval's first K episodes (episode < K)")
     args = p.parse_args(argv)
+    if args.episodes is not None and args.episodes < 1:
+        p.error(f"--episodes must be >= 1, got {args.episodes}")
     try:
         table = read_csv(args.dir / "episodes.csv")
+        if args.episodes is not None:
+            table = first_episodes(table, args.episodes)
     except EpisodesFileError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -190,3 +190,14 @@ def test_breakdown_command_prints_and_plots_and_fails_clearly_on_a_missing_csv(t
     assert (tmp_path / "b.png").stat().st_size > 5_000
     assert bd.main([str(tmp_path / "nowhere")]) == 2
     assert "nowhere/episodes.csv: no such file" in capsys.readouterr().err
+
+
+def test_breakdown_of_the_first_k_episodes_counts_only_those_and_refuses_a_k_the_file_lacks(tmp_path, capsys):
+    ep.write_csv(tmp_path / "episodes.csv", table())
+    assert bd.main([str(tmp_path), "--episodes", "4"]) == 0
+    assert capsys.readouterr().out.startswith("4 episodes, 1 collisions (rate 0.250).")
+    assert bd.main([str(tmp_path), "--episodes", "7"]) == 2
+    assert "first 7 episodes, the file has 6" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        bd.main([str(tmp_path), "--episodes", "0"])
+    assert "--episodes must be >= 1" in capsys.readouterr().err

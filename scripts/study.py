@@ -9,7 +9,7 @@
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
 appended to runs/study/<method>/seed<k>.commands before it runs, so a run can be continued in a
 later sitting. Evaluations go to results/study/<method>[@<N>]/seed<k>/ (committed), with the run's
-learning curve (`curves_<N>.json`: lasmp.eval.curves' windows of 10 iterations). Every run has
+config, its policy checkpoint (`policy_<N-1>.pt`) and learning curve (`curves_<N>.json`). Every run has
 the same budget: 450 iterations x 1,024 envs (the cpu preset), in the default configuration.
 
 LAS-MP's seeds come first (the headline row, and the fast learner's side of the comparison below).
@@ -87,7 +87,7 @@ def train(method: str, seed: int, until: int = BUDGET) -> None:
     done = last_iteration(d) + 1
     if done >= until:
         print(f"{method} seed {seed}: {done} iterations done (>= {until})")
-        write_curves(method, seed, until)
+        record_run(method, seed, until)
         return
     cmd = [
         sys.executable,
@@ -102,21 +102,27 @@ def train(method: str, seed: int, until: int = BUDGET) -> None:
     else:
         cmd += [f"runner.max_iterations={until}"]
     execute(cmd, d.with_suffix(".commands"))
-    write_curves(method, seed, until)
+    record_run(method, seed, until)
 
 
-def write_curves(method: str, seed: int, at: int) -> None:
-    """The run's learning curve to 'at' iterations (windows of 10) beside its evaluation."""
+def record_run(method: str, seed: int, at: int) -> None:
+    """Beside the run's evaluation: its config, its policy checkpoint at 'at' iterations (the
+    networks and normalizers, 1.8 MB; the full checkpoint, with the envs' running state, stays in
+    runs/) and its learning curve to 'at' (lasmp.eval.curves' windows of 10 iterations)."""
+    from lasmp.algo.checkpoint import policy_checkpoint
     from lasmp.eval.curves import read_scalars, truncated, windows
     from lasmp.eval.report import atomic_write_text
 
-    out = result_dir(method, seed, at) / f"curves_{at}.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    rows = windows(truncated(read_scalars(run_dir(method, seed)), at - 1), 10)
-    atomic_write_text(
-        out, json.dumps({"run_dir": str(run_dir(method, seed).relative_to(ROOT)), "windows": rows})
-    )
-    print(f"wrote {out.relative_to(ROOT)}")
+    d, out = run_dir(method, seed), result_dir(method, seed, at)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / "config.yaml", (d / "config.yaml").read_text())
+    policy = out / f"policy_{at - 1}.pt"
+    if not policy.exists():
+        policy_checkpoint(d / f"model_{at - 1}.pt", policy)
+    rows = windows(truncated(read_scalars(d), at - 1), 10)
+    curves = {"run_dir": str(d.relative_to(ROOT)), "windows": rows}
+    atomic_write_text(out / f"curves_{at}.json", json.dumps(curves))
+    print(f"wrote {out.relative_to(ROOT)}/{{config.yaml,{policy.name},curves_{at}.json}}")
 
 
 def result_dir(method: str, seed: int, at: int, controller: str | None = None) -> Path:

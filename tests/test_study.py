@@ -22,7 +22,7 @@ def study(tmp_path, monkeypatch):
     monkeypatch.setattr(mod, "STAND_STILL", tmp_path / "results" / "study" / "stand_still" / "seed0")
     ran = []
     monkeypatch.setattr(mod, "execute", lambda cmd, log: ran.append(cmd[1:]))
-    monkeypatch.setattr(mod, "write_curves", lambda *a: None)
+    monkeypatch.setattr(mod, "record_run", lambda *a: None)
     mod.ran = ran
     return mod
 

@@ -4,7 +4,7 @@
     python scripts/study.py train METHOD SEED [--until N]   # train (or resume) to N iterations (default 450)
     python scripts/study.py evaluate METHOD SEED [--at N]    # all of Xi_eval on model_<N-1>.pt
     python scripts/study.py next                      # the first unfinished step, trained or evaluated
-    python scripts/study.py summary                   # results/study/summary.json from what is evaluated
+    python scripts/study.py summary [--paper-columns] # results/study/summary.json from what is evaluated
 
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
 appended to runs/study/<method>/seed<k>.commands before it runs, so a run can be continued in a
@@ -191,7 +191,9 @@ def main(argv=None) -> None:
     sub = p.add_subparsers(dest="cmd", required=True)
     sub.add_parser("plan")
     sub.add_parser("next")
-    sub.add_parser("summary")
+    sub.add_parser("summary").add_argument(
+        "--paper-columns", action="store_true", help="print only the paper's five metrics"
+    )
     for name in ("train", "evaluate"):
         s = sub.add_parser(name)
         s.add_argument("method", choices=sorted(OVERRIDES))
@@ -210,7 +212,10 @@ def main(argv=None) -> None:
     elif args.cmd == "summary":
         from lasmp.eval import results_table
 
-        raise SystemExit(results_table.main([*summary_args(), "--json", str(RESULTS / "summary.json")]))
+        columns = ["--paper-columns"] if args.paper_columns else []
+        raise SystemExit(
+            results_table.main([*summary_args(), "--json", str(RESULTS / "summary.json"), *columns])
+        )
     elif args.cmd == "train":
         train(args.method, args.seed, args.n)
     else:

@@ -5,6 +5,7 @@
     python scripts/study.py evaluate METHOD SEED [--at N]    # all of Xi_eval on model_<N-1>.pt
     python scripts/study.py next                      # the first unfinished step, trained or evaluated
     python scripts/study.py summary [--paper-columns] # results/study/summary.json from what is evaluated
+    python scripts/study.py compare                   # the fast learner against float32 (issue 24, item 4)
 
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
 appended to runs/study/<method>/seed<k>.commands before it runs, so a run can be continued in a
@@ -186,11 +187,65 @@ def summary_args() -> list[str]:
     return args + ["--method", "Stand Still", str(STAND_STILL.relative_to(ROOT))]
 
 
+def first_collision_rate(method: str, seed: int) -> float:
+    """The collision rate over Xi_eval's first FLOAT32_EPISODES episodes of a run's evaluation."""
+    from lasmp.eval.breakdown import first_episodes
+    from lasmp.eval.episodes import read_csv
+
+    t = first_episodes(read_csv(result_dir(method, seed, BUDGET) / "episodes.csv"), FLOAT32_EPISODES)
+    return float((t["collided"] > 0.5).mean())
+
+
+def compare() -> str:
+    """The fast learner against float32 (Markdown): per seed, training success (mean over 50
+    iterations) with the highest curriculum level, the first iteration above level 5, and the
+    collision rate on Xi_eval's first 2,000 episodes."""
+    sides = [(m, s) for m in ("lasmp", FLOAT32) for s in FLOAT32_SEEDS]
+    label = {"lasmp": "fast", FLOAT32: "float32"}
+    curves = {}
+    for m, s in sides:
+        path = result_dir(m, s, BUDGET) / f"curves_{BUDGET}.json"
+        if not path.exists():
+            raise SystemExit(
+                f"{path} does not exist: train {m} seed {s} first (python scripts/study.py next)"
+            )
+        curves[m, s] = json.loads(path.read_text())["windows"]
+    head = " | ".join(f"{label[m]}, seed {s}" for m, s in sides)
+    lines = [f"| iterations | {head} |", "|---" * (len(sides) + 1) + "|"]
+    for lo in range(0, BUDGET, 50):
+        cells = []
+        for key in sides:
+            w = [r for r in curves[key] if lo <= r["iterations"][0] < lo + 50]
+            success = sum(r["Episode/success_rate"] for r in w) / len(w)
+            cells.append(f"{success:.2f} (level {max(r['Curriculum/level'] for r in w):.0f})")
+        lines.append(f"| {lo}-{min(lo + 50, BUDGET) - 1} | " + " | ".join(cells) + " |")
+    above = []
+    for key in sides:
+        first = [r["iterations"][0] for r in curves[key] if r["Curriculum/level"] > 5]
+        above.append(str(first[0]) if first else "never")
+    lines.append("| first window above level 5 | " + " | ".join(above) + " |")
+    rates = []
+    for m, s in sides:
+        if m == FLOAT32:
+            path = result_dir(m, s, BUDGET) / "metrics.json"
+            rate = (
+                json.loads(path.read_text())["metrics"]["collision_rate"]["mean"] if path.exists() else None
+            )
+        else:
+            rate = (
+                first_collision_rate(m, s) if (result_dir(m, s, BUDGET) / "episodes.csv").exists() else None
+            )
+        rates.append("not evaluated" if rate is None else f"{rate:.3f}")
+    lines.append(f"| collision, Xi_eval's first {FLOAT32_EPISODES:,} | " + " | ".join(rates) + " |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
     sub.add_parser("plan")
     sub.add_parser("next")
+    sub.add_parser("compare")
     sub.add_parser("summary").add_argument(
         "--paper-columns", action="store_true", help="print only the paper's five metrics"
     )
@@ -209,6 +264,8 @@ def main(argv=None) -> None:
                 (train if kind == "train" else evaluate)(method, seed, n)
                 return
         print("the study is complete")
+    elif args.cmd == "compare":
+        print(compare())
     elif args.cmd == "summary":
         from lasmp.eval import results_table
 

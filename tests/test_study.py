@@ -4,8 +4,10 @@ the rows it hands to the results table, on a constructed runs/ and results/ tree
 from __future__ import annotations
 
 import importlib.util
+import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -96,3 +98,47 @@ def test_the_summary_lists_each_row_with_its_evaluated_seeds_and_leaves_out_the_
         "--method", "R-S (oracle)", "results/study/rs_oracle/seed1",
         "--method", "Stand Still", "results/study/stand_still/seed0",
     ]  # fmt: skip
+
+
+def curves(study, method, seed, level_up_at):
+    """A learning curve whose success climbs to 0.9 and whose level leaves 5 at `level_up_at`."""
+    windows = [
+        {
+            "iterations": [lo, lo + 9],
+            "Episode/success_rate": min(0.9, lo / 200),
+            "Curriculum/level": 5.0 if lo < level_up_at else 6.0,
+        }
+        for lo in range(0, 450, 10)
+    ]
+    d = study.result_dir(method, seed, 450)
+    d.mkdir(parents=True, exist_ok=True)
+    (d / "curves_450.json").write_text(json.dumps({"windows": windows}))
+
+
+def test_compare_tabulates_both_learners_per_seed_from_their_curves_and_first_episodes(study, monkeypatch):
+    from lasmp.eval import episodes as ep
+
+    monkeypatch.setattr(study, "FLOAT32_EPISODES", 4)
+    for seed in (0, 1):
+        curves(study, "lasmp", seed, 200 + 10 * seed)
+        curves(study, "lasmp_float32", seed, 300)
+        t = {c: np.zeros(6) for c in ep.COLUMNS}
+        t["episode"] = np.arange(6)
+        t["collision_cause"] = np.array([""] * 6, dtype=object)
+        t["collided"] = np.array([1, seed, 0, 0, 1, 1], float)  # the last two are not among the first 4
+        ep.write_csv(study.result_dir("lasmp", seed, 450) / "episodes.csv", t)
+    (study.result_dir("lasmp_float32", 0, 450) / "metrics.json").write_text(
+        json.dumps({"metrics": {"collision_rate": {"mean": 0.3}}})
+    )
+    table = study.compare().splitlines()
+    assert table[0] == "| iterations | fast, seed 0 | fast, seed 1 | float32, seed 0 | float32, seed 1 |"
+    assert table[2] == "| 0-49 | 0.10 (level 5) | 0.10 (level 5) | 0.10 (level 5) | 0.10 (level 5) |"
+    assert table[6] == "| 200-249 | 0.90 (level 6) | 0.90 (level 6) | 0.90 (level 5) | 0.90 (level 5) |"
+    assert table[-2] == "| first window above level 5 | 200 | 210 | 300 | 300 |"
+    assert table[-1] == "| collision, Xi_eval's first 4 | 0.250 | 0.500 | 0.300 | not evaluated |"
+
+
+def test_compare_names_the_missing_run(study):
+    curves(study, "lasmp", 0, 200)
+    with pytest.raises(SystemExit, match="lasmp/seed1/curves_450.json does not exist"):
+        study.compare()

@@ -187,13 +187,18 @@ def summary_args() -> list[str]:
     return args + ["--method", "Stand Still", str(STAND_STILL.relative_to(ROOT))]
 
 
-def first_collision_rate(method: str, seed: int) -> float:
-    """The collision rate over Xi_eval's first FLOAT32_EPISODES episodes of a run's evaluation."""
-    from lasmp.eval.breakdown import first_episodes
+def first_collision_rate(method: str, seed: int) -> float | None:
+    """The collision rate over Xi_eval's first FLOAT32_EPISODES episodes of a run's evaluation (None
+    when it is not evaluated): the breakdown's count, whether the evaluation covered those episodes
+    alone or all 10,000."""
+    from lasmp.eval.breakdown import breakdown, first_episodes
     from lasmp.eval.episodes import read_csv
 
-    t = first_episodes(read_csv(result_dir(method, seed, BUDGET) / "episodes.csv"), FLOAT32_EPISODES)
-    return float((t["collided"] > 0.5).mean())
+    path = result_dir(method, seed, BUDGET) / "episodes.csv"
+    if not path.exists():
+        return None
+    b = breakdown(first_episodes(read_csv(path), FLOAT32_EPISODES))
+    return b["collisions"] / b["episodes"]
 
 
 def compare() -> str:
@@ -224,18 +229,8 @@ def compare() -> str:
         first = [r["iterations"][0] for r in curves[key] if r["Curriculum/level"] > 5]
         above.append(str(first[0]) if first else "never")
     lines.append("| first window above level 5 | " + " | ".join(above) + " |")
-    rates = []
-    for m, s in sides:
-        if m == FLOAT32:
-            path = result_dir(m, s, BUDGET) / "metrics.json"
-            rate = (
-                json.loads(path.read_text())["metrics"]["collision_rate"]["mean"] if path.exists() else None
-            )
-        else:
-            rate = (
-                first_collision_rate(m, s) if (result_dir(m, s, BUDGET) / "episodes.csv").exists() else None
-            )
-        rates.append("not evaluated" if rate is None else f"{rate:.3f}")
+    rates = [first_collision_rate(m, s) for m, s in sides]
+    rates = ["not evaluated" if r is None else f"{r:.3f}" for r in rates]
     lines.append(f"| collision, Xi_eval's first {FLOAT32_EPISODES:,} | " + " | ".join(rates) + " |")
     return "\n".join(lines)
 

@@ -118,24 +118,28 @@ def curves(study, method, seed, level_up_at):
 def test_compare_tabulates_both_learners_per_seed_from_their_curves_and_first_episodes(study, monkeypatch):
     from lasmp.eval import episodes as ep
 
-    monkeypatch.setattr(study, "FLOAT32_EPISODES", 4)
+    monkeypatch.setattr(study, "FLOAT32_EPISODES", 20)
+
+    def evaluated_episodes(method, seed, collided_first_20):
+        t = {c: np.zeros(24) for c in ep.COLUMNS}
+        t["episode"] = np.arange(24)
+        t["collision_cause"] = np.array([""] * 24, dtype=object)
+        t["collided"] = np.r_[np.arange(20) < collided_first_20, np.ones(4)].astype(
+            float
+        )  # 20-23 not counted
+        ep.write_csv(study.result_dir(method, seed, 450) / "episodes.csv", t)
+
     for seed in (0, 1):
         curves(study, "lasmp", seed, 200 + 10 * seed)
         curves(study, "lasmp_float32", seed, 300)
-        t = {c: np.zeros(6) for c in ep.COLUMNS}
-        t["episode"] = np.arange(6)
-        t["collision_cause"] = np.array([""] * 6, dtype=object)
-        t["collided"] = np.array([1, seed, 0, 0, 1, 1], float)  # the last two are not among the first 4
-        ep.write_csv(study.result_dir("lasmp", seed, 450) / "episodes.csv", t)
-    (study.result_dir("lasmp_float32", 0, 450) / "metrics.json").write_text(
-        json.dumps({"metrics": {"collision_rate": {"mean": 0.3}}})
-    )
+        evaluated_episodes("lasmp", seed, 5 + 5 * seed)  # an evaluation of more than the first 20
+    evaluated_episodes("lasmp_float32", 0, 6)
     table = study.compare().splitlines()
     assert table[0] == "| iterations | fast, seed 0 | fast, seed 1 | float32, seed 0 | float32, seed 1 |"
     assert table[2] == "| 0-49 | 0.10 (level 5) | 0.10 (level 5) | 0.10 (level 5) | 0.10 (level 5) |"
     assert table[6] == "| 200-249 | 0.90 (level 6) | 0.90 (level 6) | 0.90 (level 5) | 0.90 (level 5) |"
     assert table[-2] == "| first window above level 5 | 200 | 210 | 300 | 300 |"
-    assert table[-1] == "| collision, Xi_eval's first 4 | 0.250 | 0.500 | 0.300 | not evaluated |"
+    assert table[-1] == "| collision, Xi_eval's first 20 | 0.250 | 0.500 | 0.300 | not evaluated |"
 
 
 def test_compare_names_the_missing_run(study):

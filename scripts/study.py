@@ -13,7 +13,8 @@ later sitting. Evaluations go to results/study/<method>[@<N>]/seed<k>/ (committe
 config, its policy checkpoint (`policy_<N-1>.pt`) and learning curve (`curves_<N>.json`). Every run has
 the same budget: 450 iterations x 1,024 envs (the cpu preset), in the default configuration.
 
-LAS-MP's seeds come first (the headline row, and the fast learner's side of the comparison below).
+LAS-MP's seeds come first (the headline row, and the fast learner's side of the comparison below);
+seed 0's continuation to 1,000 iterations (the shipped policy) follows the comparison.
 `lasmp_float32` is issue 24's check that the fast learner (`algo.precision=auto`, the default) learns
 as float32 does: LAS-MP with `algo.precision=float32`, seeds 0 and 1, scored on Xi_eval's first
 2,000 episodes (the fast runs' on the same episodes: `python -m lasmp.eval.breakdown DIR --episodes
@@ -160,14 +161,13 @@ def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
 
 def steps():
     """Every step of the study in order: (kind, method, seed, iterations)."""
-    order = [("lasmp", s) for s in SEEDS] + [(FLOAT32, s) for s in FLOAT32_SEEDS]
-    order += [(m, s) for s in SEEDS for m in METHODS if m != "lasmp"]
-    for method, seed in order:
-        yield "train", method, seed, BUDGET
-        yield "evaluate", method, seed, BUDGET
-    for seed in SEEDS:
-        yield "train", "lasmp", seed, HEADLINE
-        yield "evaluate", "lasmp", seed, HEADLINE
+    order = [("lasmp", s, BUDGET) for s in SEEDS] + [(FLOAT32, s, BUDGET) for s in FLOAT32_SEEDS]
+    order += [("lasmp", 0, HEADLINE)]  # the new shipped policy, as early as its checkpoint allows
+    order += [(m, s, BUDGET) for s in SEEDS for m in METHODS if m != "lasmp"]
+    order += [("lasmp", s, HEADLINE) for s in SEEDS[1:]]
+    for method, seed, at in order:
+        yield "train", method, seed, at
+        yield "evaluate", method, seed, at
 
 
 def is_done(kind: str, method: str, seed: int, at: int) -> bool:

@@ -40,16 +40,17 @@ def evaluated(d: Path):
     (d / "metrics.json").write_text("{}")
 
 
-def test_the_study_runs_las_mp_seeds_then_the_float32_comparison_then_the_rest_then_the_headline(study):
+def test_the_study_runs_las_mp_seeds_then_the_float32_comparison_then_the_shipped_policy_then_the_rest(study):
     order = [(m, s, n) for kind, m, s, n in study.steps() if kind == "train"]
-    assert order[:5] == [
+    assert order[:6] == [
         ("lasmp", 0, 450),
         ("lasmp", 1, 450),
         ("lasmp", 2, 450),
         ("lasmp_float32", 0, 450),
         ("lasmp_float32", 1, 450),
+        ("lasmp", 0, 1000),
     ]
-    assert order[-3:] == [("lasmp", 0, 1000), ("lasmp", 1, 1000), ("lasmp", 2, 1000)]
+    assert order[-2:] == [("lasmp", 1, 1000), ("lasmp", 2, 1000)]
     assert len(order) == 3 * 7 + 2 + 3
 
 

@@ -20,7 +20,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--checkpoint", required=True)
     ap.add_argument("--num-envs", type=int, default=1024)
-    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--seed", type=int, default=None, help="default: the checkpoint's own random streams")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     env, policy, _, _ = load_deploy_env(args.checkpoint, num_envs=args.num_envs, seed=args.seed)

@@ -48,7 +48,7 @@ BENCHMARK_ENV = {"domain_rand": {"split": "test"}, "curriculum": {"enabled": Fal
 
 
 def collision_rate(
-    checkpoint: str, path: str, duration_s: float | None, n: int, seed: int, truth: str
+    checkpoint: str, path: str, duration_s: float | None, n: int, seed: int | None, truth: str
 ) -> float:
     """Share of the n envs' first episodes that end in a collision or fall; duration_s None: the
     trajectory file is benchmark episodes, played with the env's own episode length and drive."""
@@ -93,7 +93,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--checkpoint", required=True)
     ap.add_argument("--num-envs", type=int, default=128)
     ap.add_argument("--duration-s", type=float, default=20.0)
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=None, help="default: the checkpoint's own random streams")
     ap.add_argument(
         "--modes",
         nargs="+",

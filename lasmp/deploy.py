@@ -60,23 +60,35 @@ def build_policy(data: dict, cfg: TrainCfg) -> torch.nn.Module:
 
 
 def load_policy(
-    path, seed: int = 0, num_envs: int = 1, trajectories: str | None = None, env_overrides: dict | None = None
+    path,
+    seed: int | None = 0,
+    num_envs: int = 1,
+    trajectories: str | None = None,
+    env_overrides: dict | None = None,
 ) -> Deployed:
     """The deployable policy of `path`, a checkpoint file or a run directory (its latest
-    model_<N>.pt), with its config for `num_envs` envs (and a trajectory file, and nested env
-    overrides). CheckpointError for a missing, unreadable, hostile or mismatched checkpoint."""
+    model_<N>.pt), with its config for `num_envs` envs and `seed` (None: the run's own), and a
+    trajectory file, and nested env overrides. CheckpointError for a missing, unreadable, hostile or
+    mismatched checkpoint."""
     data = read_checkpoint(path)
+    if seed is None:
+        seed = (data.get("config") or {}).get("seed", 0)
     cfg = checkpoint_cfg(data, num_envs, seed, trajectories, env_overrides)
     return Deployed(build_policy(data, cfg), cfg, data)
 
 
 def load_deploy_env(
-    path, num_envs: int = 1, seed: int = 0, trajectories: str | None = None, env_overrides: dict | None = None
+    path,
+    num_envs: int = 1,
+    seed: int | None = None,
+    trajectories: str | None = None,
+    env_overrides: dict | None = None,
 ):
     """(env, policy, cfg, checkpoint): `load_policy` plus an env of the checkpoint's task with
-    `num_envs` envs. The env takes the checkpoint's curriculum state and random state (not its envs'
-    running state: its size may differ) and is reset, so its first episodes already use the
-    checkpoint's curriculum."""
+    `num_envs` envs. The env takes the checkpoint's curriculum state (not its envs' running state:
+    its size may differ) and is reset, so its first episodes already use the checkpoint's
+    curriculum. Its random streams: with `seed` None, the checkpoint's own at the save (its run's
+    seed, continued); with a seed, fresh streams from that seed, so that seeds give other episodes."""
     deployed = load_policy(path, seed, num_envs, trajectories, env_overrides)
     cfg, data = deployed.cfg, deployed.checkpoint
     torch.manual_seed(cfg.seed)
@@ -85,7 +97,7 @@ def load_deploy_env(
     with not_fitting(f"{data['path']}: its env or random state does not fit this env"):
         if data.get("env_state"):
             env.load_state_dict(data["env_state"], run=False)
-        if data.get("rng_state"):
+        if seed is None and data.get("rng_state"):
             set_rng_state(data["rng_state"], env.rng)
     env.reset()
     return env, deployed.policy, cfg, data

@@ -1,6 +1,6 @@
 """Play a trained LAS-MP policy: the logic behind `play.py`.
 
-    python play.py --checkpoint PATH [--num-envs 1] [--steps 500] [--seed 0] [--video out.mp4]
+    python play.py --checkpoint PATH [--num-envs 1] [--steps 500] [--seed S] [--video out.mp4]
                    [--snapshots out.png] [--viewer] [--export onnx|jit --out DIR] [--trajectories FILE | --scenario NAME]
 
 The env and the policy are rebuilt from the checkpoint's own config (never today's defaults);
@@ -155,7 +155,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint", required=True, help="a checkpoint file or a run directory (its latest)")
     p.add_argument("--num-envs", type=int, default=1)
     p.add_argument("--steps", type=int, default=None, help="policy steps (50 per second; default 500)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="fresh random streams from this seed (other episodes); default: the checkpoint's own at the save",
+    )
     p.add_argument("--video", help="write an mp4 of env 0 (camera following the platform)")
     p.add_argument(
         "--snapshots",

@@ -1,6 +1,6 @@
 """Why a run's curriculum does not promote: the success rate at its level, three ways.
 
-    python scripts/curriculum_probe.py CHECKPOINT [--envs 512] [--seed 0] [--std-scales 0.5 ...] [--json out.json]
+    python scripts/curriculum_probe.py CHECKPOINT [--envs 512] [--seed S] [--std-scales 0.5 ...] [--json out.json]
 
 The curriculum promotes on the success rate (time-out without a collision) of the *training*
 rollouts: the stochastic policy, on the training distribution at the checkpoint's level. This
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("checkpoint")
     p.add_argument("--envs", type=int, default=512)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=None, help="default: the checkpoint's own random streams")
     p.add_argument("--std-scales", type=float, nargs="*", default=[], help="extra sampled runs, std scaled")
     p.add_argument("--json", type=Path)
     args = p.parse_args(argv)
@@ -76,8 +76,8 @@ def main(argv=None) -> int:
     results = {}
     for name, scale in [*modes, ("stand_still", None)]:
         with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl's models print themselves
-            env, policy, _, data = load_deploy_env(args.checkpoint, num_envs=args.envs, seed=args.seed)
-        torch.manual_seed(args.seed)
+            env, policy, cfg, data = load_deploy_env(args.checkpoint, num_envs=args.envs, seed=args.seed)
+        torch.manual_seed(cfg.seed)  # the action noise: the same draws in every mode
         num_actions = int(data["num_actions"])
         dist = policy.distribution
         dist.update(torch.zeros(1, num_actions))  # rsl_rl's std, as its sampling takes it (clamped)

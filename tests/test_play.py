@@ -55,6 +55,21 @@ def test_play_runs_and_prints_summary(run_dir, capsys):
     assert "episodes ended" in out and "collisions" in out and "mean reward per step" in out
 
 
+def test_a_seed_gives_other_episodes_and_no_seed_continues_the_checkpoints_own_streams(run_dir):
+    def first_episode(seed):
+        env, _, cfg, _ = load_deploy_env(run_dir, num_envs=1, seed=seed)
+        pose, _, _ = env.traj.evaluate(np.array([2.0]))
+        return cfg.seed, pose, env.intrinsics.trunk_mass_kg.copy()
+
+    (s1, pose1, mass1), (_, pose1b, mass1b), (s2, pose2, mass2) = map(first_episode, (1, 1, 2))
+    assert (s1, s2) == (1, 2)
+    assert np.array_equal(pose1, pose1b) and np.array_equal(mass1, mass1b)
+    assert not np.array_equal(pose1, pose2) and not np.array_equal(mass1, mass2)
+    (own, pose_own, _), (_, pose_own_b, _) = first_episode(None), first_episode(None)
+    assert own == 0 and np.array_equal(pose_own, pose_own_b)  # the run's seed, its streams at the save
+    assert not np.array_equal(pose_own, first_episode(0)[1])  # not its seed's fresh streams
+
+
 def test_policy_from_checkpoint_config_and_deploy_ignores_privileged(loaded):
     env, policy, cfg, _ = loaded
     assert cfg.policy.latent_dim == LATENT_DIM and cfg.env.num_envs == 1 and cfg.seed == 3

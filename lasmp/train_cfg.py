@@ -78,7 +78,8 @@ class AlgoCfg:
     estimate_rollout_every: int = 1
     estimate_rollout_start: int = 100
     # (ours) how the learner computes (lasmp/algo/precision.py): auto = bfloat16 autocast where the
-    # hardware multiplies bfloat16 natively (a CPU with AVX-512 BF16 / AMX, a GPU with bfloat16), the
+    # hardware multiplies bfloat16 natively and faster (a CPU with AVX-512 BF16 / AMX whose bfloat16
+    # matrix product measures >= 1.25x float32's at start-up, a GPU with bfloat16), the
     # fused Adam and compiled MLPs where they work, each falling back with a line at start-up saying
     # why; float32 = none of them (the learner of the runs trained before auto: a seeded run repeats
     # their curve); bfloat16 = the autocast forced

@@ -2,8 +2,10 @@
 each where the hardware and the installation have it, and one line that says what runs and why.
 
 `auto` takes each part that pays here: bfloat16 autocast only on a CPU with AVX-512 BF16 or AMX (on
-others oneDNN emulates bfloat16 and the matrix products run several times slower) or a GPU with
-native bfloat16; the fused Adam where torch has it for the device; compiled MLPs where a tiny
+others oneDNN emulates bfloat16 and the matrix products run several times slower) where a matrix
+product of the learner's size also measures faster in bfloat16 than in float32 (the flag alone
+cannot tell: an AMD EPYC with AVX-512 BF16 multiplies bfloat16 2.4 times as fast as float32, an
+Intel Xeon with AVX-512 BF16 and no AMX at 0.54 times the speed), or a GPU with native bfloat16; the fused Adam where torch has it for the device; compiled MLPs where a tiny
 `torch.compile` succeeds (on a CPU it needs a C++ compiler). `float32` is the learner as it was
 before `auto`: no autocast, rsl_rl's Adam, eager networks, so a seeded run repeats its old curve.
 `bfloat16` forces the autocast (with a warning where it is emulated). The per-part switches
@@ -14,6 +16,7 @@ override one part; configs saved before `precision` existed set all three to fal
 from __future__ import annotations
 
 import functools
+import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +26,14 @@ import torch
 from lasmp.train_cfg import PRECISIONS
 
 BF16_CPU_FLAGS = ("avx512_bf16", "amx_bf16")  # x86 /proc/cpuinfo flags of native bfloat16 matrix products
+# (ours) bfloat16 autocast pays on a CPU only where its matrix products measure at least this much
+# faster than float32's: the update also pays for the casts (docs/performance.md, "A third CPU")
+BF16_MIN_SPEEDUP = 1.25
+PROBE_SHAPE = (
+    3072,
+    512,
+    256,
+)  # a minibatch of the default config (1,024 envs x 12 steps / 4) x a hidden layer
 
 
 def cpu_has_fast_bf16(cpuinfo: str | None = None) -> bool:
@@ -44,15 +55,44 @@ def cpu_has_fast_bf16(cpuinfo: str | None = None) -> bool:
     return any(flag in flags for flag in BF16_CPU_FLAGS)
 
 
+@functools.cache
+def bf16_matmul_speedup(rounds: int = 3, reps: int = 4) -> float:
+    """How many times faster this CPU multiplies a learner-sized matrix product (`PROBE_SHAPE`) in
+    bfloat16 than in float32, on torch's threads: the best of `rounds` interleaved timings of `reps`
+    products each, so that a load on the machine slows both sides alike. About 0.2 s; once per
+    process. Run only where the flags promise native bfloat16 (where it is emulated it is slow)."""
+    rows, inner, cols = PROBE_SHAPE
+    gen = torch.Generator().manual_seed(0)
+    a, b = torch.randn(rows, inner, generator=gen), torch.randn(inner, cols, generator=gen)
+    pairs = {dtype: (a.to(dtype), b.to(dtype)) for dtype in (torch.float32, torch.bfloat16)}
+    best = dict.fromkeys(pairs, float("inf"))
+    with torch.inference_mode():
+        for x, y in pairs.values():  # warm-up: oneDNN picks and builds its kernel
+            torch.mm(x, y)
+        for _ in range(rounds):
+            for dtype, (x, y) in pairs.items():
+                start = time.perf_counter()
+                for _ in range(reps):
+                    torch.mm(x, y)
+                best[dtype] = min(best[dtype], time.perf_counter() - start)
+    return best[torch.float32] / best[torch.bfloat16]
+
+
 def _bf16(device: torch.device) -> tuple[bool, str]:
-    """(native bfloat16 on this device, why not)."""
+    """(bfloat16 pays on this device, why not)."""
     if device.type == "cuda":
         if torch.cuda.is_bf16_supported(including_emulation=False):
             return True, ""
         return False, "this GPU lacks native bfloat16"
-    if device.type == "cpu" and cpu_has_fast_bf16():
-        return True, ""
-    return False, "this CPU lacks AVX-512 BF16/AMX: bfloat16 would be emulated, several times slower"
+    if device.type != "cpu" or not cpu_has_fast_bf16():
+        return False, "this CPU lacks AVX-512 BF16/AMX: bfloat16 would be emulated, several times slower"
+    speedup = bf16_matmul_speedup()
+    if speedup < BF16_MIN_SPEEDUP:
+        return False, (
+            f"this CPU's bfloat16 matrix products measured {speedup:.2f}x float32's speed, "
+            f"under the {BF16_MIN_SPEEDUP}x that pays"
+        )
+    return True, ""
 
 
 @functools.cache

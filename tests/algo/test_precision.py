@@ -63,9 +63,38 @@ def rollout(runner):
 
 def test_auto_on_a_cpu_with_bf16_turns_the_autocast_on(monkeypatch):
     monkeypatch.setattr(prec, "cpu_has_fast_bf16", lambda cpuinfo=None: True)
+    monkeypatch.setattr(prec, "bf16_matmul_speedup", lambda: 2.4)  # the AMD EPYC of docs/performance.md
     plan = resolve_precision("auto", "cpu")
     assert plan.bf16_autocast and plan.fused_adam and plan.compile_mlps
     assert plan.line().startswith("learner: bfloat16 autocast, fused Adam")
+
+
+def test_auto_keeps_float32_where_the_flag_is_there_but_bf16_products_measure_slower(monkeypatch):
+    monkeypatch.setattr(prec, "cpu_has_fast_bf16", lambda cpuinfo=None: True)
+    monkeypatch.setattr(prec, "bf16_matmul_speedup", lambda: 0.54)  # the Intel Xeon without AMX
+    plan = resolve_precision("auto", "cpu")
+    assert not plan.bf16_autocast and plan.fused_adam and plan.compile_mlps
+    assert "measured 0.54x float32's speed" in plan.line()
+    with pytest.warns(UserWarning, match="measured 0.54x"):  # forced, it runs, saying so
+        assert resolve_precision("bfloat16", "cpu").bf16_autocast
+
+
+def test_the_bf16_probe_is_not_run_where_the_flags_say_bf16_is_emulated(monkeypatch, no_bf16_cpu):
+    def never():
+        raise AssertionError("emulated bfloat16 products are slow: no probe without the flag")
+
+    monkeypatch.setattr(prec, "bf16_matmul_speedup", never)
+    assert not resolve_precision("auto", "cpu").bf16_autocast
+
+
+@pytest.mark.skipif(not cpu_has_fast_bf16(), reason="the probe runs only where the flags promise bf16")
+def test_the_bf16_probe_measures_a_speed_ratio_on_this_cpu():
+    prec.bf16_matmul_speedup.cache_clear()
+    speedup = prec.bf16_matmul_speedup(rounds=1, reps=1)
+    assert 0.01 < speedup < 100  # a ratio of two timings of one product, not a constant
+    assert resolve_precision("auto", "cpu").bf16_autocast == (
+        prec.bf16_matmul_speedup() >= prec.BF16_MIN_SPEEDUP
+    )
 
 
 def test_float32_is_the_plain_learner(tmp_path, capsys):

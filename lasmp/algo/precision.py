@@ -5,7 +5,8 @@ each where the hardware and the installation have it, and one line that says wha
 others oneDNN emulates bfloat16 and the matrix products run several times slower) where a matrix
 product of the learner's size also measures faster in bfloat16 than in float32 (the flag alone
 cannot tell: an AMD EPYC with AVX-512 BF16 multiplies bfloat16 2.4 times as fast as float32, an
-Intel Xeon with AVX-512 BF16 and no AMX at 0.54 times the speed), or a GPU with native bfloat16; the fused Adam where torch has it for the device; compiled MLPs where a tiny
+Intel Xeon with AVX-512 BF16 and no AMX at 0.5-0.6 times the speed), or on a GPU with native
+bfloat16; the fused Adam where torch has it for the device; compiled MLPs where a tiny
 `torch.compile` succeeds (on a CPU it needs a C++ compiler). `float32` is the learner as it was
 before `auto`: no autocast, rsl_rl's Adam, eager networks, so a seeded run repeats its old curve.
 `bfloat16` forces the autocast (with a warning where it is emulated). The per-part switches
@@ -29,11 +30,8 @@ BF16_CPU_FLAGS = ("avx512_bf16", "amx_bf16")  # x86 /proc/cpuinfo flags of nativ
 # (ours) bfloat16 autocast pays on a CPU only where its matrix products measure at least this much
 # faster than float32's: the update also pays for the casts (docs/performance.md, "A third CPU")
 BF16_MIN_SPEEDUP = 1.25
-PROBE_SHAPE = (
-    3072,
-    512,
-    256,
-)  # a minibatch of the default config (1,024 envs x 12 steps / 4) x a hidden layer
+# the probe's product: a minibatch of the default config (1,024 envs x 12 steps / 4) through a hidden layer
+PROBE_SHAPE = (3072, 512, 256)
 
 
 def cpu_has_fast_bf16(cpuinfo: str | None = None) -> bool:

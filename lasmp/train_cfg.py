@@ -63,7 +63,10 @@ class AlgoCfg:
     gamma: float = 0.99
     lam: float = 0.95
     value_loss_coef: float = 1.0
-    entropy_coef: float = 0.01
+    # (ours) no entropy bonus (rsl_rl's default is 0.01; SPEC §9 gives none): from curriculum level 10 on
+    # its pull on the action std outweighed the task's, the noisier rollouts failed, the curriculum
+    # stalled and the policy got worse with training (docs/results.md, "The entropy bonus")
+    entropy_coef: float = 0.0
     max_grad_norm: float = 1.0
     desired_kl: float = 0.01
     schedule: str = "adaptive"

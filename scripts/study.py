@@ -13,12 +13,15 @@ later sitting. Evaluations go to results/study/<method>[@<N>]/seed<k>/ (committe
 config, its policy checkpoint (`policy_<N-1>.pt`) and learning curve (`curves_<N>.json`). Every run has
 the same budget: 450 iterations x 1,024 envs (the cpu preset), in the default configuration.
 
-LAS-MP's seeds come first (the headline row, and the fast learner's side of the comparison below);
-seed 0's continuation to 1,000 iterations (the shipped policy) follows the comparison.
-`lasmp_float32` is issue 24's check that the fast learner (`algo.precision=auto`, the default) learns
-as float32 does: LAS-MP with `algo.precision=float32`, seeds 0 and 1, scored on Xi_eval's first
-2,000 episodes (the fast runs' on the same episodes: `python -m lasmp.eval.breakdown DIR --episodes
-2000`).
+LAS-MP's seeds come first (the headline row), then seed 0's continuation to 1,000 iterations (the
+shipped policy), then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000 iterations.
+
+The study's first pass, under rsl_rl's entropy bonus (`algo.entropy_coef=0.01`, the default until
+that pass showed it degrades LAS-MP from curriculum level 10 on: docs/results.md), is kept in
+results/study/entropy_0.01/ (its runs in runs/study_entropy_0.01/). It holds issue 24's check that
+the fast learner (bfloat16 autocast) learns as float32 does: LAS-MP with `algo.precision=float32`,
+seeds 0 and 1, against that pass's LAS-MP seeds 0 and 1 on Xi_eval's first 2,000 episodes;
+`compare` tabulates it from there.
 """
 
 from __future__ import annotations
@@ -29,11 +32,13 @@ import re
 import shlex
 import subprocess
 import sys
+from datetime import UTC, datetime
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS = ROOT / "runs" / "study"
 RESULTS = ROOT / "results" / "study"
+FIRST_PASS = RESULTS / "entropy_0.01"  # the first pass, under the entropy bonus 0.01 (the docstring)
 SEEDS = (0, 1, 2)
 BUDGET = 450
 HEADLINE = 1000  # LAS-MP's three seeds continue to the cpu preset's length
@@ -47,10 +52,9 @@ METHODS = {
     "no_explicit_estimator_history": ["policy=no_explicit_estimator_history"],
     "rs": ["task=rough_static"],
 }
-FLOAT32 = "lasmp_float32"  # the fast-learner comparison: not a row of the results table
+FLOAT32 = "lasmp_float32"  # the fast-learner comparison, in the first pass: not a row of the table
 FLOAT32_SEEDS = (0, 1)
 FLOAT32_EPISODES = 2000
-OVERRIDES = {**METHODS, FLOAT32: ["algo.precision=float32"]}
 # the results table's rows: name -> (method, iterations, controller); Stand Still has no seeds
 ROWS = {
     "LAS-MP": ("lasmp", BUDGET, None),
@@ -77,8 +81,12 @@ def last_iteration(d: Path) -> int:
 
 
 def execute(cmd: list[str], log: Path) -> None:
+    """Run cmd niced, after appending it to log with the time and the commit."""
     log.parent.mkdir(parents=True, exist_ok=True)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
+    when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     with log.open("a") as f:
+        f.write(f"# {when}, at {commit.stdout.strip() or 'no commit'}, nice -n 10\n")
         f.write(shlex.join(cmd) + "\n")
     print("+", shlex.join(cmd), flush=True)
     subprocess.run(["nice", "-n", "10", *cmd], cwd=ROOT, check=True)
@@ -94,7 +102,7 @@ def train(method: str, seed: int, until: int = BUDGET) -> None:
     cmd = [
         sys.executable,
         "train.py",
-        *OVERRIDES[method],
+        *METHODS[method],
         f"seed={seed}",
         "runner.save_interval=25",
         f"runner.log_dir={d.relative_to(ROOT)}",
@@ -127,9 +135,11 @@ def record_run(method: str, seed: int, at: int) -> None:
     print(f"wrote {out.relative_to(ROOT)}/{{config.yaml,{policy.name},curves_{at}.json}}")
 
 
-def result_dir(method: str, seed: int, at: int, controller: str | None = None) -> Path:
+def result_dir(
+    method: str, seed: int, at: int, controller: str | None = None, root: Path | None = None
+) -> Path:
     name = controller or method
-    return RESULTS / (name if at == BUDGET else f"{name}@{at}") / f"seed{seed}"
+    return (root or RESULTS) / (name if at == BUDGET else f"{name}@{at}") / f"seed{seed}"
 
 
 def controllers(method: str) -> list[str | None]:
@@ -140,7 +150,6 @@ def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
     ckpt = run_dir(method, seed) / f"model_{at - 1}.pt"
     if not ckpt.exists():
         raise SystemExit(f"{ckpt} does not exist: train {method} seed {seed} to {at} iterations first")
-    first = ["--num-trajectories", str(FLOAT32_EPISODES)] if method == FLOAT32 else []
     for controller in controllers(method):
         out = result_dir(method, seed, at, controller)
         if (out / "metrics.json").exists():
@@ -154,14 +163,13 @@ def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
             "--out",
             str(out.relative_to(ROOT)),
             "--no-platform-probe",  # the probe doubles an evaluation's cost; Stand Still's run has it
-            *first,
         ] + (["--controller", controller] if controller else [])
         execute(cmd, run_dir(method, seed).with_suffix(".commands"))
 
 
 def steps():
     """Every step of the study in order: (kind, method, seed, iterations)."""
-    order = [("lasmp", s, BUDGET) for s in SEEDS] + [(FLOAT32, s, BUDGET) for s in FLOAT32_SEEDS]
+    order = [("lasmp", s, BUDGET) for s in SEEDS]
     order += [("lasmp", 0, HEADLINE)]  # the new shipped policy, as early as its checkpoint allows
     order += [(m, s, BUDGET) for s in SEEDS for m in METHODS if m != "lasmp"]
     order += [("lasmp", s, HEADLINE) for s in SEEDS[1:]]
@@ -188,13 +196,13 @@ def summary_args() -> list[str]:
 
 
 def first_collision_rate(method: str, seed: int) -> float | None:
-    """The collision rate over Xi_eval's first FLOAT32_EPISODES episodes of a run's evaluation (None
-    when it is not evaluated): the breakdown's count, whether the evaluation covered those episodes
-    alone or all 10,000."""
+    """The collision rate over Xi_eval's first FLOAT32_EPISODES episodes of a first-pass run's
+    evaluation (None when it is not evaluated): the breakdown's count, whether the evaluation covered
+    those episodes alone or all 10,000."""
     from lasmp.eval.breakdown import breakdown, first_episodes
     from lasmp.eval.episodes import read_csv
 
-    path = result_dir(method, seed, BUDGET) / "episodes.csv"
+    path = result_dir(method, seed, BUDGET, root=FIRST_PASS) / "episodes.csv"
     if not path.exists():
         return None
     b = breakdown(first_episodes(read_csv(path), FLOAT32_EPISODES))
@@ -202,18 +210,16 @@ def first_collision_rate(method: str, seed: int) -> float | None:
 
 
 def compare() -> str:
-    """The fast learner against float32 (Markdown): per seed, training success (mean over 50
-    iterations) with the highest curriculum level, the first iteration above level 5, and the
-    collision rate on Xi_eval's first 2,000 episodes."""
+    """The fast learner against float32 in the first pass (Markdown): per seed, training success
+    (mean over 50 iterations) with the highest curriculum level, the first iteration above level 5,
+    and the collision rate on Xi_eval's first 2,000 episodes."""
     sides = [(m, s) for m in ("lasmp", FLOAT32) for s in FLOAT32_SEEDS]
     label = {"lasmp": "fast", FLOAT32: "float32"}
     curves = {}
     for m, s in sides:
-        path = result_dir(m, s, BUDGET) / f"curves_{BUDGET}.json"
+        path = result_dir(m, s, BUDGET, root=FIRST_PASS) / f"curves_{BUDGET}.json"
         if not path.exists():
-            raise SystemExit(
-                f"{path} does not exist: train {m} seed {s} first (python scripts/study.py next)"
-            )
+            raise SystemExit(f"{path} does not exist: the first pass's {m} seed {s} is not in this checkout")
         curves[m, s] = json.loads(path.read_text())["windows"]
     head = " | ".join(f"{label[m]}, seed {s}" for m, s in sides)
     lines = [f"| iterations | {head} |", "|---" * (len(sides) + 1) + "|"]
@@ -246,7 +252,7 @@ def main(argv=None) -> None:
     )
     for name in ("train", "evaluate"):
         s = sub.add_parser(name)
-        s.add_argument("method", choices=sorted(OVERRIDES))
+        s.add_argument("method", choices=sorted(METHODS))
         s.add_argument("seed", type=int, choices=SEEDS)
         s.add_argument("--until" if name == "train" else "--at", type=int, default=BUDGET, dest="n")
     args = p.parse_args(argv)

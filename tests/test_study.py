@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import shlex
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -21,8 +24,10 @@ def study(tmp_path, monkeypatch):
     monkeypatch.setattr(mod, "ROOT", tmp_path)
     monkeypatch.setattr(mod, "RUNS", tmp_path / "runs" / "study")
     monkeypatch.setattr(mod, "RESULTS", tmp_path / "results" / "study")
+    monkeypatch.setattr(mod, "FIRST_PASS", tmp_path / "results" / "study" / "entropy_0.01")
     monkeypatch.setattr(mod, "STAND_STILL", tmp_path / "results" / "study" / "stand_still" / "seed0")
     ran = []
+    mod.real_execute = mod.execute
     monkeypatch.setattr(mod, "execute", lambda cmd, log: ran.append(cmd[1:]))
     monkeypatch.setattr(mod, "record_run", lambda *a: None)
     mod.ran = ran
@@ -40,18 +45,18 @@ def evaluated(d: Path):
     (d / "metrics.json").write_text("{}")
 
 
-def test_the_study_runs_las_mp_seeds_then_the_float32_comparison_then_the_shipped_policy_then_the_rest(study):
+def test_the_study_runs_las_mp_seeds_then_the_shipped_policy_then_the_rest(study):
     order = [(m, s, n) for kind, m, s, n in study.steps() if kind == "train"]
-    assert order[:6] == [
+    assert order[:5] == [
         ("lasmp", 0, 450),
         ("lasmp", 1, 450),
         ("lasmp", 2, 450),
-        ("lasmp_float32", 0, 450),
-        ("lasmp_float32", 1, 450),
         ("lasmp", 0, 1000),
+        ("lasmp_centre", 0, 450),
     ]
     assert order[-2:] == [("lasmp", 1, 1000), ("lasmp", 2, 1000)]
-    assert len(order) == 3 * 7 + 2 + 3
+    assert len(order) == 3 * 7 + 3
+    assert "lasmp_float32" not in {m for m, _, _ in order}  # the first pass's check, not rerun
 
 
 def test_next_trains_the_first_unfinished_run_and_resumes_it_where_it_stopped(study):
@@ -64,16 +69,30 @@ def test_next_trains_the_first_unfinished_run_and_resumes_it_where_it_stopped(st
     assert "resume=runs/study/lasmp/seed1" in cmd and "runner.max_iterations=250" in cmd
 
 
-def test_the_float32_side_trains_with_float32_and_is_scored_on_the_first_2000_episodes(study):
-    study.train("lasmp_float32", 1)
-    assert "algo.precision=float32" in study.ran[-1] and "runner.max_iterations=450" in study.ran[-1]
-    trained(study, "lasmp_float32", 1, 450)
-    study.evaluate("lasmp_float32", 1)
+def test_a_method_trains_with_its_overrides_and_is_evaluated_on_all_of_xi_eval(study):
+    study.train("no_alignment_command", 1)
+    assert "policy=no_alignment_command" in study.ran[-1] and "runner.max_iterations=450" in study.ran[-1]
+    trained(study, "no_alignment_command", 1, 450)
+    study.evaluate("no_alignment_command", 1)
     cmd = study.ran[-1]
-    assert cmd[cmd.index("--num-trajectories") + 1] == "2000"
-    assert cmd[cmd.index("--out") + 1] == "results/study/lasmp_float32/seed1"
+    assert "--num-trajectories" not in cmd
+    assert cmd[cmd.index("--out") + 1] == "results/study/no_alignment_command/seed1"
     with pytest.raises(SystemExit, match="model_449.pt does not exist"):
         study.evaluate("lasmp", 2)
+    with pytest.raises(SystemExit):
+        study.main(["train", "lasmp_float32", "0"])
+
+
+def test_each_command_is_logged_with_its_time_and_commit_before_it_runs(study, tmp_path):
+    log = tmp_path / "runs" / "study" / "lasmp" / "seed0.commands"
+    cmd = [sys.executable, "-c", "open('ran', 'w')"]
+    study.real_execute(cmd, log)
+    header, command = log.read_text().splitlines()
+    assert header.startswith("# 20") and header.endswith(", at no commit, nice -n 10")  # tmp_path: no git
+    assert shlex.split(command) == cmd
+    assert (tmp_path / "ran").exists()  # it ran, in ROOT
+    with pytest.raises(subprocess.CalledProcessError):
+        study.real_execute([sys.executable, "-c", "raise SystemExit(3)"], log)
 
 
 def test_rs_is_evaluated_twice_and_counts_as_done_only_with_both_controllers(study):
@@ -87,11 +106,11 @@ def test_rs_is_evaluated_twice_and_counts_as_done_only_with_both_controllers(stu
     assert study.is_done("evaluate", "rs", 0, 450)
 
 
-def test_the_summary_lists_each_row_with_its_evaluated_seeds_and_leaves_out_the_float32_side(study):
+def test_the_summary_lists_each_row_with_its_evaluated_seeds_and_leaves_out_the_first_pass(study):
     for s in (0, 2):
         evaluated(study.result_dir("lasmp", s, 450))
     evaluated(study.result_dir("lasmp", 0, 1000))
-    evaluated(study.result_dir("lasmp_float32", 0, 450))
+    evaluated(study.result_dir("lasmp", 1, 450, root=study.FIRST_PASS))
     evaluated(study.result_dir("rs", 1, 450, "rs_oracle"))
     assert study.summary_args() == [
         "--method", "LAS-MP", "results/study/lasmp/seed0", "results/study/lasmp/seed2",
@@ -111,12 +130,14 @@ def curves(study, method, seed, level_up_at):
         }
         for lo in range(0, 450, 10)
     ]
-    d = study.result_dir(method, seed, 450)
+    d = study.result_dir(method, seed, 450, root=study.FIRST_PASS)
     d.mkdir(parents=True, exist_ok=True)
     (d / "curves_450.json").write_text(json.dumps({"windows": windows}))
 
 
-def test_compare_tabulates_both_learners_per_seed_from_their_curves_and_first_episodes(study, monkeypatch):
+def test_compare_tabulates_both_learners_of_the_first_pass_per_seed_from_their_curves_and_first_episodes(
+    study, monkeypatch
+):
     from lasmp.eval import episodes as ep
 
     monkeypatch.setattr(study, "FLOAT32_EPISODES", 20)
@@ -128,7 +149,7 @@ def test_compare_tabulates_both_learners_per_seed_from_their_curves_and_first_ep
         t["collided"] = np.r_[np.arange(20) < collided_first_20, np.ones(4)].astype(
             float
         )  # 20-23 not counted
-        ep.write_csv(study.result_dir(method, seed, 450) / "episodes.csv", t)
+        ep.write_csv(study.result_dir(method, seed, 450, root=study.FIRST_PASS) / "episodes.csv", t)
 
     for seed in (0, 1):
         curves(study, "lasmp", seed, 200 + 10 * seed)
@@ -145,5 +166,7 @@ def test_compare_tabulates_both_learners_per_seed_from_their_curves_and_first_ep
 
 def test_compare_names_the_missing_run(study):
     curves(study, "lasmp", 0, 200)
-    with pytest.raises(SystemExit, match="lasmp/seed1/curves_450.json does not exist"):
+    curves(study, "lasmp", 1, 200)
+    evaluated(study.result_dir("lasmp_float32", 0, 450))  # a current-pass directory is not the first pass's
+    with pytest.raises(SystemExit, match="entropy_0.01/lasmp_float32/seed0/curves_450.json does not exist"):
         study.compare()

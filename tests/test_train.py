@@ -253,6 +253,25 @@ def test_time_outs_are_bootstrapped_and_terminations_are_not(tmp_path):
     assert values[0].abs() > 0  # otherwise the check above proves nothing
 
 
+@pytest.mark.parametrize("entropy_coef", [None, 0.01])
+def test_without_a_task_signal_the_default_update_leaves_the_action_std_alone_and_an_entropy_bonus_raises_it(
+    tmp_path, entropy_coef
+):
+    """Zero advantages give PPO's surrogate no gradient, so only an entropy bonus moves the std; the
+    default has none (ours: rsl_rl's 0.01 pushed the std back up from curriculum level 10 on)."""
+    algo = {} if entropy_coef is None else {"entropy_coef": entropy_coef}
+    runner = make_runner(tiny(tmp_path, algo=algo), None)
+    rollout(runner)
+    runner.alg.storage.advantages = torch.zeros_like(runner.alg.storage.advantages)
+    std = runner.alg.get_policy().distribution.std_param
+    before = std.detach().clone()
+    runner.alg.update()
+    if entropy_coef is None:
+        assert torch.equal(std, before)
+    else:
+        assert (std > before).all()
+
+
 def test_checkpoint_round_trip_and_exact_resume(tmp_path):
     cfg = tiny(tmp_path / "a")
     runner = train(cfg)

@@ -45,13 +45,13 @@ def evaluated(d: Path):
     (d / "metrics.json").write_text("{}")
 
 
-def test_the_study_runs_las_mp_seeds_then_the_shipped_policy_then_the_rest(study):
+def test_the_study_runs_las_mp_seed_0_and_the_shipped_policy_then_the_other_seeds_then_the_rest(study):
     order = [(m, s, n) for kind, m, s, n in study.steps() if kind == "train"]
     assert order[:5] == [
         ("lasmp", 0, 450),
+        ("lasmp", 0, 1000),
         ("lasmp", 1, 450),
         ("lasmp", 2, 450),
-        ("lasmp", 0, 1000),
         ("lasmp_centre", 0, 450),
     ]
     assert order[-2:] == [("lasmp", 1, 1000), ("lasmp", 2, 1000)]
@@ -62,11 +62,12 @@ def test_the_study_runs_las_mp_seeds_then_the_shipped_policy_then_the_rest(study
 def test_next_trains_the_first_unfinished_run_and_resumes_it_where_it_stopped(study):
     trained(study, "lasmp", 0, 450)
     evaluated(study.result_dir("lasmp", 0, 450))
-    trained(study, "lasmp", 1, 200)
+    trained(study, "lasmp", 0, 700)  # on its way to 1,000 iterations
+    trained(study, "lasmp", 1, 450)
     study.main(["next"])
     cmd = study.ran[-1]
-    assert cmd[0] == "train.py" and "seed=1" in cmd
-    assert "resume=runs/study/lasmp/seed1" in cmd and "runner.max_iterations=250" in cmd
+    assert cmd[0] == "train.py" and "seed=0" in cmd
+    assert "resume=runs/study/lasmp/seed0" in cmd and "runner.max_iterations=300" in cmd
 
 
 def test_a_method_trains_with_its_overrides_and_is_evaluated_on_all_of_xi_eval(study):

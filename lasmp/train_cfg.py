@@ -67,6 +67,9 @@ class AlgoCfg:
     # its pull on the action std outweighed the task's, the noisier rollouts failed, the curriculum
     # stalled and the policy got worse with training (docs/results.md, "The entropy bonus")
     entropy_coef: float = 0.0
+    # (ours) iterations over which the entropy bonus falls linearly from entropy_coef to 0, after which
+    # it stays 0; 0 = constant (rsl_rl's). Why a schedule is offered: docs/results.md, "The entropy bonus"
+    entropy_decay_iterations: int = 0
     max_grad_norm: float = 1.0
     desired_kl: float = 0.01
     schedule: str = "adaptive"
@@ -172,6 +175,11 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
     for name in ("num_learning_epochs", "num_mini_batches", "estimator_epochs"):
         if getattr(a, name) < 1:
             raise ConfigError(f"algo.{name} must be >= 1, got {getattr(a, name)}")
+    if a.entropy_coef < 0 or a.entropy_decay_iterations < 0:
+        raise ConfigError(
+            f"algo.entropy_coef and algo.entropy_decay_iterations must be >= 0, got {a.entropy_coef}, "
+            f"{a.entropy_decay_iterations}"
+        )
     if a.estimate_rollout_every < 0 or a.estimate_rollout_start < 0:
         raise ConfigError(
             f"algo.estimate_rollout_every and algo.estimate_rollout_start must be >= 0, got "

@@ -272,6 +272,29 @@ def test_without_a_task_signal_the_default_update_leaves_the_action_std_alone_an
         assert (std > before).all()
 
 
+def test_a_decaying_entropy_bonus_falls_linearly_to_zero_and_a_resumed_learner_goes_on_where_it_left(tmp_path):
+    algo = {"entropy_coef": 0.01, "entropy_decay_iterations": 4}
+    alg, env, steps = _learner(tmp_path, algo=algo)
+    std = alg.get_policy().distribution.std_param
+    logged, moved = [], []
+    for _ in range(6):
+        _learner_rollout(alg, env, steps)
+        alg.storage.advantages = torch.zeros_like(alg.storage.advantages)  # only the bonus moves the std
+        alg.optimizer.state.clear()  # and no momentum of an earlier update
+        before = std.detach().clone()
+        logged.append(alg.update()["Policy/entropy_coef"])
+        moved.append(not torch.equal(std, before))
+    assert logged == pytest.approx([0.01, 0.0075, 0.005, 0.0025, 0.0, 0.0])
+    assert moved == [True, True, True, True, False, False]  # no bonus left from iteration 4 on
+    resumed, _, _ = _learner(tmp_path, algo=algo)
+    assert resumed.entropy_coef == pytest.approx(0.01)
+    assert resumed.load({**alg.save(), "iter": 1}, None, True)  # goes on at iteration 2
+    assert resumed.entropy_coef == pytest.approx(0.005)
+    constant, _, _ = _learner(tmp_path, algo={"entropy_coef": 0.01})
+    constant.iteration = 10_000
+    assert constant.entropy_coef == 0.01  # 0 decay iterations: rsl_rl's constant bonus
+
+
 def test_checkpoint_round_trip_and_exact_resume(tmp_path):
     cfg = tiny(tmp_path / "a")
     runner = train(cfg)
@@ -370,6 +393,8 @@ def test_presets_and_overrides_compose():
 def test_invalid_training_config_names_the_field():
     with pytest.raises(ConfigError, match="algo.roa_lambda"):
         to_train_cfg(OmegaConf.create({"algo": {"roa_lambda": -1.0}}))
+    with pytest.raises(ConfigError, match="algo.entropy_decay_iterations"):
+        to_train_cfg(OmegaConf.create({"algo": {"entropy_decay_iterations": -1}}))
     with pytest.raises(ConfigError, match="policy.use_alignment"):
         to_train_cfg(OmegaConf.create({"policy": {"explicit": "none"}}))
     with pytest.raises(Exception, match="num_env"):  # a typo: OmegaConf names the unknown key

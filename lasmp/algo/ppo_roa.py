@@ -22,6 +22,10 @@ detached outputs, as at deployment: the policy then learns to live with estimati
 PPO update reuses the estimates the rollout acted on, kept at each step (`act`): PPO's epochs
 change neither the estimators nor the normalizer, so they are what the policy saw, bit for bit.
 
+The entropy bonus may fall linearly to 0 over the first `entropy_decay_iterations` iterations (ours;
+0: constant, as in rsl_rl); the learner sets `entropy_coef` for each iteration, so a resumed run
+continues the schedule where its checkpoint left it.
+
 Divergence guard: a non-finite loss, parameter or optimizer state after an update raises
 `FloatingPointError` naming it, before the iteration counts as done (the runner then saves nothing).
 """
@@ -53,6 +57,7 @@ class PPOROA(PPO):
         estimator_epochs: int = 1,
         estimate_rollout_every: int = 0,
         estimate_rollout_start: int = 0,
+        entropy_decay_iterations: int = 0,
         precision: str = "auto",
         use_mixed_precision: bool | None = None,
         fused_adam: bool | None = None,
@@ -85,6 +90,10 @@ class PPOROA(PPO):
         self.estimator_epochs = estimator_epochs
         self.estimate_rollout_every = estimate_rollout_every
         self.estimate_rollout_start = estimate_rollout_start
+        if entropy_decay_iterations < 0:
+            raise ValueError(f"algorithm.entropy_decay_iterations must be >= 0, got {entropy_decay_iterations}")
+        self.initial_entropy_coef = self.entropy_coef
+        self.entropy_decay_iterations = entropy_decay_iterations
         self._estimator_params = list(actor.estimator_parameters())
         self.estimator_optimizer = torch.optim.Adam(
             self._estimator_params, lr=estimator_learning_rate, fused=True if plan.fused_adam else None
@@ -100,6 +109,14 @@ class PPOROA(PPO):
         every, start = self.estimate_rollout_every, self.estimate_rollout_start
         return every > 0 and iteration >= start and (iteration - start) % every == 0
 
+    def entropy_coef_at(self, iteration: int) -> float:
+        """The entropy bonus of iteration `iteration`'s update: `entropy_coef`, falling linearly to 0 at
+        iteration `entropy_decay_iterations` and 0 after it (0 decay iterations: constant)."""
+        decay = self.entropy_decay_iterations
+        if decay == 0:
+            return self.initial_entropy_coef
+        return self.initial_entropy_coef * max(0.0, 1.0 - iteration / decay)
+
     @property
     def iteration(self) -> int:
         """The iteration whose rollout and update come next (0-based; `update` completes it)."""
@@ -110,6 +127,7 @@ class PPOROA(PPO):
         """Go on at iteration `iteration`: its rollout and update act as the schedule says."""
         self._iteration = int(iteration)
         self._raw_actor.act_on_estimates = self.acts_on_estimates(self._iteration)
+        self.entropy_coef = self.entropy_coef_at(self._iteration)
 
     def start_learner(self) -> None:
         """Once, when training starts (the first `act` or `update`, so that loading a policy to play or
@@ -162,6 +180,7 @@ class PPOROA(PPO):
             del self.storage.mini_batch_generator  # the storage's own again
         loss_dict.update(self.update_roa())
         loss_dict["Policy/acts_on_estimates"] = float(on_estimates)
+        loss_dict["Policy/entropy_coef"] = self.entropy_coef
         self._check_diverged(loss_dict)
         self.iteration += 1
         return loss_dict

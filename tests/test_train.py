@@ -272,7 +272,9 @@ def test_without_a_task_signal_the_default_update_leaves_the_action_std_alone_an
         assert (std > before).all()
 
 
-def test_a_decaying_entropy_bonus_falls_linearly_to_zero_and_a_resumed_learner_goes_on_where_it_left(tmp_path):
+def test_a_decaying_entropy_bonus_falls_linearly_to_zero_and_a_resumed_learner_goes_on_where_it_left(
+    tmp_path,
+):
     algo = {"entropy_coef": 0.01, "entropy_decay_iterations": 4}
     alg, env, steps = _learner(tmp_path, algo=algo)
     std = alg.get_policy().distribution.std_param

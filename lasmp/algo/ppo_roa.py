@@ -91,7 +91,9 @@ class PPOROA(PPO):
         self.estimate_rollout_every = estimate_rollout_every
         self.estimate_rollout_start = estimate_rollout_start
         if entropy_decay_iterations < 0:
-            raise ValueError(f"algorithm.entropy_decay_iterations must be >= 0, got {entropy_decay_iterations}")
+            raise ValueError(
+                f"algorithm.entropy_decay_iterations must be >= 0, got {entropy_decay_iterations}"
+            )
         self.initial_entropy_coef = self.entropy_coef
         self.entropy_decay_iterations = entropy_decay_iterations
         self._estimator_params = list(actor.estimator_parameters())

@@ -22,7 +22,9 @@ that pass showed it degrades LAS-MP from curriculum level 10 on: docs/results.md
 results/study/entropy_0.01/ (its runs in runs/study_entropy_0.01/). It holds issue 24's check that
 the fast learner (bfloat16 autocast) learns as float32 does: LAS-MP with `algo.precision=float32`,
 seeds 0 and 1, against that pass's LAS-MP seeds 0 and 1 on Xi_eval's first 2,000 episodes;
-`compare` tabulates it from there.
+`compare` tabulates it from there. The second pass, without a bonus (the default until it showed the
+policy crouching), is kept in results/study/entropy_0/ (its runs in runs/study_entropy_0/); the third,
+under the default 0.003, is the study.
 """
 
 from __future__ import annotations

@@ -86,14 +86,14 @@ class PPOROA(PPO):
                 "algorithm.estimate_rollout_every and estimate_rollout_start must be >= 0, got "
                 f"{estimate_rollout_every}, {estimate_rollout_start}"
             )
-        self.roa_lambda = roa_lambda
-        self.estimator_epochs = estimator_epochs
-        self.estimate_rollout_every = estimate_rollout_every
-        self.estimate_rollout_start = estimate_rollout_start
         if entropy_decay_iterations < 0:
             raise ValueError(
                 f"algorithm.entropy_decay_iterations must be >= 0, got {entropy_decay_iterations}"
             )
+        self.roa_lambda = roa_lambda
+        self.estimator_epochs = estimator_epochs
+        self.estimate_rollout_every = estimate_rollout_every
+        self.estimate_rollout_start = estimate_rollout_start
         self.initial_entropy_coef = self.entropy_coef
         self.entropy_decay_iterations = entropy_decay_iterations
         self._estimator_params = list(actor.estimator_parameters())

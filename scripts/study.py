@@ -183,9 +183,13 @@ def steps():
 
 
 def is_done(kind: str, method: str, seed: int, at: int) -> bool:
+    """A step is done when its result is committed. A training is also done once its evaluation is:
+    on a fresh machine runs/ is gone, and a later step that needs the full checkpoint (a continuation
+    to 1,000 iterations) retrains from the start."""
+    evaluated = all((result_dir(method, seed, at, c) / "metrics.json").exists() for c in controllers(method))
     if kind == "train":
-        return last_iteration(run_dir(method, seed)) + 1 >= at
-    return all((result_dir(method, seed, at, c) / "metrics.json").exists() for c in controllers(method))
+        return evaluated or last_iteration(run_dir(method, seed)) + 1 >= at
+    return evaluated
 
 
 def summary_args() -> list[str]:

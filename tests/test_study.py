@@ -70,6 +70,18 @@ def test_next_trains_the_first_unfinished_run_and_resumes_it_where_it_stopped(st
     assert "resume=runs/study/lasmp/seed0" in cmd and "runner.max_iterations=300" in cmd
 
 
+def test_on_a_fresh_machine_evaluated_runs_are_skipped_and_a_continuation_retrains_from_the_start(study):
+    for s in (0, 1):  # committed results, no runs/: a new machine
+        evaluated(study.result_dir("lasmp", s, 450))
+    evaluated(study.result_dir("lasmp", 0, 1000))
+    assert study.is_done("train", "lasmp", 1, 450) and not study.is_done("train", "lasmp", 1, 1000)
+    study.main(["next"])
+    assert "seed=2" in study.ran[-1] and "runner.max_iterations=450" in study.ran[-1]
+    study.train("lasmp", 1, 1000)
+    assert "runner.max_iterations=1000" in study.ran[-1]
+    assert not any(a.startswith("resume=") for a in study.ran[-1])
+
+
 def test_a_method_trains_with_its_overrides_and_is_evaluated_on_all_of_xi_eval(study):
     study.train("no_alignment_command", 1)
     assert "policy=no_alignment_command" in study.ran[-1] and "runner.max_iterations=450" in study.ran[-1]

@@ -14,6 +14,10 @@ Definition
       take the first K rows of the full set (:meth:`Benchmark.subset`), not a set drawn with M = K.
     * Pairing (fixed, method-independent): episode k replays trajectory k with robot k % R
       (:meth:`Benchmark.pairing`). Every method meets exactly the same (trajectory, robot) pairs.
+    * Initial pose (ours): episode k starts at the heading (and offset) of its own draws,
+      ``np.random.default_rng([seed, 2, k])`` (:meth:`Benchmark.initial_pose_draws`), so it starts
+      the same whatever the controller, the number of envs or the order in which envs reset. Not
+      stored: it follows from the seed.
 
 File (``.npz``, :func:`save` / :func:`load`), bit-for-bit reproducible
     Written with our own ``zipfile`` writer: entries stored uncompressed, in a fixed order, with a
@@ -121,11 +125,24 @@ class Benchmark:
             raise IndexError(f"episode indices must be in 0..{self.num_trajectories - 1}")
         return k.copy(), k % self.num_robots
 
+    def initial_pose_draws(self, episodes) -> np.ndarray:
+        """(n, 3) uniforms in [0, 1) from which episodes k start (the env maps them to a heading and
+        an offset): stream [seed, 2, k] of each episode."""
+        k = np.asarray(episodes, dtype=np.int64)
+        return episode_draws([[self.seed, 2, int(e)] for e in k.ravel()])
+
     def subset(self, num_trajectories: int) -> Benchmark:
         """The first ``num_trajectories`` trajectories with the same robots (quick runs)."""
         if not 1 <= num_trajectories <= self.num_trajectories:
             raise ValueError(f"subset: need 1..{self.num_trajectories} trajectories, got {num_trajectories}")
         return Benchmark(self.trajectories.subset(np.arange(num_trajectories)), self.robots, self.seed)
+
+
+def episode_draws(keys) -> np.ndarray:
+    """(len(keys), 3) uniforms in [0, 1): row i from `np.random.default_rng(keys[i])`, a generator of
+    the episode's own (its key: a list of non-negative ints). An episode's start then depends on
+    nothing but its key."""
+    return np.array([np.random.default_rng(key).random(3) for key in keys]).reshape(-1, 3)
 
 
 def generate(

@@ -1,8 +1,8 @@
 """Run a controller over the benchmark's episodes, in batches of envs, and collect metrics.
 
 Each env plays benchmark episodes one after another: when its episode ends (collision, fall or
-time-out), it resets into the next unplayed episode k (trajectory k, robot k mod R) until all K
-episodes are done; envs left without an episode keep running but are no longer counted. The
+time-out), it resets into the next unplayed episode k (trajectory k, robot k mod R, its own
+initial heading) until all K episodes are done; envs left without an episode keep running but are no longer counted. The
 pairing of trajectories and robots is therefore the same for every controller.
 
 Besides the metrics, each episode's end is recorded: when it collided (s after its start) and
@@ -55,7 +55,8 @@ class BenchmarkSource:
             np.minimum(k, self.num_episodes - 1)
         )  # fillers replay the last
         traj = self.bench.trajectories.subset(traj_rows)
-        return traj, traj.n_waypoints, intrinsics_rows(self.bench.robots, robot_rows)
+        pose = self.bench.initial_pose_draws(np.minimum(k, self.num_episodes - 1))
+        return traj, traj.n_waypoints, intrinsics_rows(self.bench.robots, robot_rows), pose
 
 
 FALL_CAUSES = ("off_footprint", "below_top")

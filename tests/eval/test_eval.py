@@ -155,7 +155,7 @@ def test_rotation_angle():
 def test_benchmark_source_pairs_episodes_in_order_and_marks_the_rest_inactive():
     bench = bm.generate(num_trajectories=5, num_robots=2, seed=0)
     src = BenchmarkSource(bench, num_episodes=5, num_envs=3)
-    traj, levels, robots = src.next_episodes(np.array([0, 1, 2]))
+    traj, levels, robots, pose = src.next_episodes(np.array([0, 1, 2]))
     assert src.episode_of_env.tolist() == [0, 1, 2]
     assert np.array_equal(robots.trunk_mass_kg, bench.robots.trunk_mass_kg[[0, 1, 0]])
     assert np.array_equal(levels, bench.trajectories.n_waypoints[:3])
@@ -164,6 +164,42 @@ def test_benchmark_source_pairs_episodes_in_order_and_marks_the_rest_inactive():
     assert src.episode_of_env.tolist() == [-1, 3, 4]  # episode 5 does not exist: env 0 is a filler
     with pytest.raises(ValueError, match="num_episodes"):
         BenchmarkSource(bench, num_episodes=6, num_envs=1)
+    np.testing.assert_array_equal(pose, bench.initial_pose_draws([0, 1, 2]))
+
+
+def test_each_benchmark_episode_has_its_own_initial_pose_draws_whatever_the_set_size():
+    bench = bm.generate(num_trajectories=6, num_robots=2, seed=0)
+    draws = bench.initial_pose_draws(np.arange(6))
+    assert draws.shape == (6, 3) and np.all((draws >= 0) & (draws < 1))
+    assert len(np.unique(draws[:, 0])) == 6  # not one draw shared by the robots' rows
+    np.testing.assert_array_equal(bench.subset(3).initial_pose_draws([2, 0]), draws[[2, 0]])
+    other_seed = bm.generate(num_trajectories=6, num_robots=2, seed=1)
+    assert not np.array_equal(other_seed.initial_pose_draws([0]), draws[:1])
+
+
+def test_an_episode_starts_at_the_same_heading_whichever_env_plays_it_and_whatever_played_before():
+    """play.py --benchmark-episode k must show the robot as the evaluation met it: episode 3 played
+    by env 0 after a fresh start and by env 1 after episodes 0..2 starts at one heading."""
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
+    from lasmp.envs.moving_platform.env import MovingPlatformEnv
+
+    bench = bm.generate(num_trajectories=6, num_robots=2, seed=0)
+    yaw = {}
+    for first, num_envs in ((0, 4), (3, 2)):
+        env = MovingPlatformEnv(build_env_cfg({"num_envs": num_envs}, schema=MovingPlatformCfg))
+        env.reset()  # a training reset first: it consumes the env's own random stream
+        source = BenchmarkSource(bench, 6, num_envs)
+        source.next_episode = first
+        env.episode_source = source
+        env.reset()
+        for k, y in zip(source.episode_of_env, env.readout.phi_body_w[:, 2].tolist(), strict=True):
+            yaw.setdefault(int(k), []).append(y)
+    assert yaw[3][0] == pytest.approx(yaw[3][1], abs=1e-6)  # env 3 of 4, then env 0 of 2
+    lo, hi = MovingPlatformCfg().init_state.yaw_range_rad
+    expected = lo + (hi - lo) * bench.initial_pose_draws([0, 1, 2, 3, 4])[:, 0]
+    got = [yaw[k][0] for k in range(5)]
+    np.testing.assert_allclose(np.angle(np.exp(1j * (np.array(got) - expected))), 0.0, atol=1e-6)
 
 
 def run_evaluate(*args, cwd):

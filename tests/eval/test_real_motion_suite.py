@@ -35,6 +35,18 @@ def test_every_scenario_builds_a_valid_motion():
         assert s["acc_max_mps2"] > 0.0, f"{m.name} does not move"
 
 
+def test_a_scenario_run_alone_gives_each_robot_the_initial_pose_draws_it_has_in_the_full_suite(small_bench):
+    bench = bm.load(small_bench)
+    full = rm.make_episodes(rm.build_motions(), bench.robots, 4)
+    alone = rm.make_episodes(rm.build_motions(["bus_stop_and_go"]), bench.robots, 4)
+    i = full.names.index("bus_stop_and_go")
+    np.testing.assert_array_equal(
+        alone.initial_pose_draws(np.arange(4)), full.initial_pose_draws(np.arange(4) + 4 * i)
+    )
+    draws = full.initial_pose_draws(np.arange(full.num_episodes))
+    assert len(np.unique(draws[:, 0])) == full.num_episodes  # every (scenario, robot) its own
+
+
 def test_scenario_names_are_checked():
     with pytest.raises(ValueError, match="unknown scenario.*'boat'"):
         rm.scenario_names(["boat"])

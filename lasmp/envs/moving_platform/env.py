@@ -127,7 +127,7 @@ class MovingPlatformEnv(BaseEnv):
         self.nonfinite_obs_values = 0  # replaced by 0 in the last observation (a fault symptom)
         self.readout: Readout | None = None
         # Hooks for evaluation: `episode_source.next_episodes(ids)` (host ids) -> (trajectories,
-        # levels, Intrinsics) replaces the random draws at reset; `on_step(readout, collision)` sees
+        # levels, Intrinsics, (n, 3) initial-pose uniforms) replaces the random draws at reset; `on_step(readout, collision)` sees
         # every step's state (tensors) before the finished envs are reset.
         self.episode_source = None
         self.on_step = None
@@ -245,8 +245,9 @@ class MovingPlatformEnv(BaseEnv):
 
         n = len(ids)
         dr = self.cfg.domain_rand
+        pose_u = None  # training draws the initial pose from self.rng below
         if self.episode_source is not None:
-            new_traj, levels, params = self.episode_source.next_episodes(ids_h)
+            new_traj, levels, params, pose_u = self.episode_source.next_episodes(ids_h)
         else:
             if dr.enabled:
                 params = sample_intrinsics(n, dr.ranges, self.rng)
@@ -261,11 +262,18 @@ class MovingPlatformEnv(BaseEnv):
         self.traj_level[ids_h] = levels
 
         init, ix = self.cfg.init_state, self.index
-        yaw = self.rng.uniform(*init.yaw_range_rad, size=n)
+        if pose_u is None:  # three uniforms per env, in the order training has always drawn them
+            pose_u = np.zeros((n, 3))
+            pose_u[:, 0] = self.rng.uniform(size=n)
+            if init.xy_offset_max_m > 0:
+                pose_u[:, 1] = self.rng.uniform(size=n)
+                pose_u[:, 2] = self.rng.uniform(size=n)
+        lo, hi = init.yaw_range_rad
+        yaw = lo + (hi - lo) * pose_u[:, 0]
         xy = np.zeros((n, 2))  # the platform's centre
         if init.xy_offset_max_m > 0:  # uniform in the disc
-            rho = init.xy_offset_max_m * np.sqrt(self.rng.uniform(size=n))
-            angle = self.rng.uniform(-np.pi, np.pi, size=n)
+            rho = init.xy_offset_max_m * np.sqrt(pose_u[:, 1])
+            angle = -np.pi + 2 * np.pi * pose_u[:, 2]
             xy = np.stack([rho * np.cos(angle), rho * np.sin(angle)], axis=1)
         qpos = self.qpos0.repeat(n, 1)
         qpos[:, ix.root_qpos : ix.root_qpos + 2] = self.tensor(xy)

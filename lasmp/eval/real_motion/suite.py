@@ -8,7 +8,8 @@ seed 0 (one realisation per scenario, the same for every controller).
 
 Episodes (:class:`SuiteEpisodes`): every scenario is played with the first R robots of Xi_eval
 (default R = 64, testing intrinsics): episode k plays scenario k // R with robot k % R. So every
-controller meets the same (scenario, robot) pairs, as on the benchmark.
+controller meets the same (scenario, robot) pairs, as on the benchmark, and each pair starts at the
+heading of its own draws (:meth:`SuiteEpisodes.initial_pose_draws`), whichever scenarios run.
 
 The platform drive (:data:`PLATFORM_DRIVES`). The suite asks whether a policy survives the motion
 a real vehicle makes, so by default (``close``) the platform follows its reference closely: a 4 Hz
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,12 +36,14 @@ import numpy as np
 
 from lasmp.envs import trajectories as trj
 from lasmp.envs.robot import Intrinsics
+from lasmp.eval.benchmark import episode_draws
 from lasmp.eval.metrics import METRICS, summarize
 from lasmp.motions.motion import Motion, derivatives, to_trajectories
 
 SUITE_NAME = "real_motion"
 DEFAULT_ROBOTS_PER_SCENARIO = 64
 NUM_BATCHES = 8  # per scenario: mean +- std over 8 consecutive batches of robots
+POSE_STREAM = 3  # the first entry of each episode's key for its initial pose (Xi_eval's are [seed, 2, k])
 
 
 def _variant(module: str, function: str, variant: str) -> Callable[[], Motion]:
@@ -119,6 +123,16 @@ class SuiteEpisodes:
         if k.size and (k.min() < 0 or k.max() >= self.num_episodes):
             raise IndexError(f"episode indices must be in 0..{self.num_episodes - 1}")
         return k // self.robots_per_scenario, k % self.robots_per_scenario
+
+    def initial_pose_draws(self, episodes) -> np.ndarray:
+        """(n, 3) uniforms from which episodes k start: each from a generator keyed by its scenario's
+        name (CRC-32) and its robot, so a scenario run alone starts as it does in the full suite."""
+        scenario, robot = self.pairing(episodes)
+        keys = [
+            [POSE_STREAM, zlib.crc32(self.names[s].encode()), int(r)]
+            for s, r in zip(scenario, robot, strict=True)
+        ]
+        return episode_draws(keys)
 
     def scenario_slice(self, i: int) -> slice:
         r = self.robots_per_scenario

@@ -84,13 +84,16 @@ def last_iteration(d: Path) -> int:
 
 
 def execute(cmd: list[str], log: Path) -> None:
-    """Run cmd niced, after appending it to log with the time and the commit."""
-    log.parent.mkdir(parents=True, exist_ok=True)
+    """Run cmd niced, after appending it to log with the time and the commit; a log in runs/study/ is
+    mirrored in results/study/ (committed, so the commands outlive the machine)."""
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
     when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
-    with log.open("a") as f:
-        f.write(f"# {when}, at {commit.stdout.strip() or 'no commit'}, nice -n 10\n")
-        f.write(shlex.join(cmd) + "\n")
+    logs = [log] + ([RESULTS / log.relative_to(RUNS)] if log.is_relative_to(RUNS) else [])
+    for path in logs:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("a") as f:
+            f.write(f"# {when}, at {commit.stdout.strip() or 'no commit'}, nice -n 10\n")
+            f.write(shlex.join(cmd) + "\n")
     print("+", shlex.join(cmd), flush=True)
     subprocess.run(["nice", "-n", "10", *cmd], cwd=ROOT, check=True)
 

@@ -104,6 +104,8 @@ def test_each_command_is_logged_with_its_time_and_commit_before_it_runs(study, t
     assert header.startswith("# 20") and header.endswith(", at no commit, nice -n 10")  # tmp_path: no git
     assert shlex.split(command) == cmd
     assert (tmp_path / "ran").exists()  # it ran, in ROOT
+    mirror = tmp_path / "results" / "study" / "lasmp" / "seed0.commands"
+    assert mirror.read_text() == log.read_text()  # committed beside the results
     with pytest.raises(subprocess.CalledProcessError):
         study.real_execute([sys.executable, "-c", "raise SystemExit(3)"], log)
 

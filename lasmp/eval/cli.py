@@ -351,6 +351,11 @@ def run_suite(args, p) -> int:
     }
     if "estimator" in run:
         result["estimator"] = run["estimator"]
+    ep.write_csv(
+        out_dir / "episodes.csv",
+        rm.episode_table(episodes, per_episode, env.cfg.init_state),
+        rm.EPISODE_COLUMNS,
+    )
     write_results(out_dir, result, rm.markdown)
     print((out_dir / "metrics.md").read_text())
     return 0

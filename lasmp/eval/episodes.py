@@ -303,13 +303,13 @@ def _cell(value) -> str:
     return str(int(value)) if value.is_integer() and abs(value) < 2**53 else repr(value)
 
 
-def write_csv(path: Path, table: dict[str, np.ndarray]) -> None:
-    """`table` (COLUMNS) as CSV at `path`, atomically."""
+def write_csv(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...] = COLUMNS) -> None:
+    """`table`'s `columns` (default: Xi_eval's COLUMNS) as CSV at `path`, atomically."""
     text = io.StringIO()
     w = csv.writer(text, lineterminator="\n")
-    w.writerow(COLUMNS)
-    for i in range(len(table["episode"])):
-        w.writerow([_cell(table[c][i]) for c in COLUMNS])
+    w.writerow(columns)
+    for i in range(len(table[columns[0]])):
+        w.writerow([_cell(table[c][i]) for c in columns])
     with atomic_open(path, "w") as f:
         f.write(text.getvalue())
 

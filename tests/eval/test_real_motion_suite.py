@@ -1,11 +1,13 @@
 """The real-motion suite: scenarios, episodes, the platform drive, the evaluate.py and module CLIs."""
 
+import csv
 import json
 
 import numpy as np
 import pytest
 
 from lasmp.envs import trajectories as trj
+from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.eval import benchmark as bm
 from lasmp.eval.cli import eval_env_overrides
 from lasmp.eval.cli import main as evaluate_main
@@ -70,7 +72,6 @@ def test_episodes_pair_every_scenario_with_the_same_robots(small_bench):
 
 def test_suite_overrides_reach_the_env_config():
     from lasmp.config import build_env_cfg
-    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 
     def build(drive: str) -> MovingPlatformCfg:
         return build_env_cfg(
@@ -132,6 +133,20 @@ def test_evaluate_suite_end_to_end(tmp_path, small_bench, capsys):
         assert s["mean_episode_steps"] <= DEFAULT_DURATION_S / 0.02 + 1
         assert result["platform_tracking"][name]["reference_acc_rms_mps2"] > 0.0
         assert result["reference_motion"][name]["acc_max_mps2"] > 0.0
+    rows = list(csv.DictReader((out / "episodes.csv").open()))
+    assert [(r["scenario"], r["robot"]) for r in rows] == [(n, str(i)) for n in QUICK for i in range(2)]
+    init = MovingPlatformCfg().init_state
+    lo, hi = init.yaw_range_rad
+    pose = rm.make_episodes(rm.build_motions(QUICK), bm.load(small_bench).robots, 2).initial_pose_draws(
+        range(4)
+    )
+    assert [float(r["initial_yaw_rad"]) for r in rows] == pytest.approx(lo + (hi - lo) * pose[:, 0])
+    for name in QUICK:  # each row's collision is the episode's: the scenario's rate is their mean
+        collided = [float(r["collision"]) for r in rows if r["scenario"] == name]
+        assert np.mean(collided) == pytest.approx(
+            result["scenarios"][name]["metrics"]["collision_rate"]["mean"]
+        )
+    assert all(bool(r["collision_cause"]) == (r["collision"] == "1") for r in rows)
     md = (out / "metrics.md").read_text()
     assert "| lift_up |" in md and "| bus_emergency_brake |" in md and "How the platform followed" in md
     capsys.readouterr()

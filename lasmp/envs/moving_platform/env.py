@@ -50,6 +50,20 @@ from lasmp.envs.trajectories.device import DevicePoly
 from lasmp.robots import a1
 
 
+def initial_pose(u: np.ndarray, init) -> tuple[np.ndarray, np.ndarray]:
+    """The trunk's initial yaw (n,) in rad and xy offset (n, 2) in m from the platform's centre, from
+    three uniforms in [0, 1) per env (`u`, (n, 3)): yaw uniform in `init.yaw_range_rad`, the offset
+    uniform in the disc of radius `init.xy_offset_max_m` (0: at the centre)."""
+    lo, hi = init.yaw_range_rad
+    yaw = lo + (hi - lo) * u[:, 0]
+    xy = np.zeros((len(u), 2))
+    if init.xy_offset_max_m > 0:
+        rho = init.xy_offset_max_m * np.sqrt(u[:, 1])
+        angle = -np.pi + 2 * np.pi * u[:, 2]
+        xy = np.stack([rho * np.cos(angle), rho * np.sin(angle)], axis=1)
+    return yaw, xy
+
+
 class MovingPlatformEnv(BaseEnv):
     cfg_class = MovingPlatformCfg
 
@@ -268,13 +282,7 @@ class MovingPlatformEnv(BaseEnv):
             if init.xy_offset_max_m > 0:
                 pose_u[:, 1] = self.rng.uniform(size=n)
                 pose_u[:, 2] = self.rng.uniform(size=n)
-        lo, hi = init.yaw_range_rad
-        yaw = lo + (hi - lo) * pose_u[:, 0]
-        xy = np.zeros((n, 2))  # the platform's centre
-        if init.xy_offset_max_m > 0:  # uniform in the disc
-            rho = init.xy_offset_max_m * np.sqrt(pose_u[:, 1])
-            angle = -np.pi + 2 * np.pi * pose_u[:, 2]
-            xy = np.stack([rho * np.cos(angle), rho * np.sin(angle)], axis=1)
+        yaw, xy = initial_pose(pose_u, init)
         qpos = self.qpos0.repeat(n, 1)
         qpos[:, ix.root_qpos : ix.root_qpos + 2] = self.tensor(xy)
         qpos[:, ix.root_qpos + 2] = self.plf_top_m + self.trunk_height_m + init.foot_clearance_m

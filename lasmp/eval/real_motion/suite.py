@@ -37,7 +37,7 @@ import numpy as np
 from lasmp.envs import trajectories as trj
 from lasmp.envs.robot import Intrinsics
 from lasmp.eval.benchmark import episode_draws
-from lasmp.eval.metrics import METRICS, summarize
+from lasmp.eval.metrics import ALL_METRICS, EPISODE_KEY, METRICS, summarize
 from lasmp.motions.motion import Motion, derivatives, to_trajectories
 
 SUITE_NAME = "real_motion"
@@ -166,6 +166,36 @@ def per_scenario(episodes: SuiteEpisodes, per_episode: dict[str, np.ndarray]) ->
             "mean_episode_steps": float(np.mean(per_episode["steps"][sl])),
         }
     return out
+
+
+EPISODE_COLUMNS = (
+    "episode",
+    "scenario",
+    "robot",
+    "initial_yaw_rad",  # the trunk's heading at the start, from the vehicle's forward axis (world x)
+    "collision",
+    "collision_time_s",
+    "collision_cause",
+    "steps",
+    *(EPISODE_KEY[m] for m in ALL_METRICS if m != "collision_rate"),
+)
+
+
+def episode_table(episodes: SuiteEpisodes, per_episode: dict[str, np.ndarray], init) -> dict[str, np.ndarray]:
+    """EPISODE_COLUMNS -> arrays, one row per (scenario, robot) episode (`run_benchmark`'s episodes);
+    `init`: the env's init_state, which maps each episode's pose draws to its heading."""
+    from lasmp.envs.moving_platform.env import initial_pose
+
+    k = np.arange(episodes.num_episodes)
+    scenario, robot = episodes.pairing(k)
+    yaw, _ = initial_pose(episodes.initial_pose_draws(k), init)
+    table = {
+        "episode": k,
+        "scenario": np.array(episodes.names)[scenario],
+        "robot": robot,
+        "initial_yaw_rad": yaw,
+    }
+    return table | {c: per_episode[c] for c in EPISODE_COLUMNS if c not in table}
 
 
 def motion_summary(m: Motion) -> dict[str, float]:

@@ -12,7 +12,8 @@
     suite options: --robots-per-scenario R (default 64) --platform-drive close|paper --scenarios NAME ...
 
 Writes DIR/metrics.json (strict JSON: a missing value is null), DIR/metrics.md and DIR/episodes.csv
-(one row per episode: lasmp/eval/episodes.py; `python -m lasmp.eval.breakdown DIR` reads it).
+(one row per episode: lasmp/eval/episodes.py; `python -m lasmp.eval.breakdown DIR` reads it; the
+suite's has one row per scenario and robot, with its initial heading: lasmp/eval/real_motion/suite.py).
 Definitions: lasmp/eval/metrics.py and docs/evaluation.md.
 
 The default DIR is eval/<controller> for Stand Still, else eval/<run directory>/<checkpoint stem>

@@ -151,7 +151,9 @@ def _asdict(cfg) -> dict:
     return OmegaConf.to_container(OmegaConf.structured(cfg))
 
 
-def main(argv=None) -> int:
+def main(argv=None, motions=None) -> int:
+    """`motions` (with --suite, from code): Motion objects to play instead of the suite's named
+    scenarios, as scripts/level_acceleration_probe.py does."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument(
         "--checkpoint", help="a checkpoint file or run directory (LAS-MP, or R-S for rs/rs_oracle)"
@@ -214,7 +216,9 @@ def main(argv=None) -> int:
     if args.batch_envs < 1:
         p.error(f"--batch-envs must be >= 1, got {args.batch_envs}")
     if args.suite:
-        return run_suite(args, p)
+        return run_suite(args, p, motions)
+    if motions is not None:
+        p.error("motions need --suite")
     for flag, value in (
         ("--scenarios", args.scenarios),
         ("--robots-per-scenario", args.robots_per_scenario),
@@ -305,8 +309,9 @@ def prepare_out_dir(out_dir: Path, force: bool) -> Path:
     return out_dir
 
 
-def run_suite(args, p) -> int:
-    """`--suite real_motion`: every scenario with the benchmark's first R robots (lasmp.eval.real_motion)."""
+def run_suite(args, p, motions=None) -> int:
+    """`--suite real_motion`: every scenario (or `motions`) with the benchmark's first R robots
+    (lasmp.eval.real_motion)."""
     from lasmp.eval.real_motion import suite as rm
 
     for flag, value in (
@@ -320,9 +325,12 @@ def run_suite(args, p) -> int:
     drive = args.platform_drive or rm.DEFAULT_DRIVE
     robots = args.robots_per_scenario or rm.DEFAULT_ROBOTS_PER_SCENARIO
     try:
-        names = rm.scenario_names(args.scenarios)
+        if motions is None:
+            motions = rm.build_motions(rm.scenario_names(args.scenarios))
+        elif args.scenarios:
+            p.error("give --scenarios or motions, not both")
+        names = [m.name for m in motions]
         bench = load_or_make_benchmark(args.benchmark)
-        motions = rm.build_motions(names)
         episodes = rm.make_episodes(motions, bench.robots, robots)
         duration_s = max(m.duration_s for m in motions)
         extra = rm.env_overrides(duration_s, drive)

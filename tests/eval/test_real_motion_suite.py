@@ -2,6 +2,7 @@
 
 import csv
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -227,3 +228,33 @@ def test_motion_rejects_a_motion_that_does_not_start_at_rest_pose():
         Motion("x", t, np.ones((len(t), 6)))
     m = Motion("y", t, np.zeros((len(t), 6)))
     assert to_trajectories([m]).meta["scenarios"][0]["name"] == "y"
+
+
+def test_the_suite_plays_motions_given_from_code_and_the_level_acceleration_probe_matches_its_tilt(
+    tmp_path, small_bench
+):
+    import importlib.util
+
+    from lasmp.motions.motion import derivatives
+
+    spec = importlib.util.spec_from_file_location(
+        "probe", Path(__file__).parents[2] / "scripts" / "level_acceleration_probe.py"
+    )
+    probe = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(probe)
+    level, tilt = probe.motions()
+    _, a = derivatives(level)
+    assert np.abs(a[:, 0]).max() == pytest.approx(1.5, rel=0.01) and np.all(level.pose[:, 1:] == 0)
+    assert np.abs(tilt.pose[:, 4]).max() == pytest.approx(np.arctan(1.5 / 9.81)) and np.all(
+        tilt.pose[:, :4] == 0
+    )
+    out = tmp_path / "probe"
+    argv = ["--controller", "stand_still", "--robots-per-scenario", "1", "--benchmark", str(small_bench)]
+    assert evaluate_main([*argv, "--suite", "real_motion", "--out", str(out)], motions=[level, tilt]) == 0
+    result = json.loads((out / "metrics.json").read_text())
+    assert list(result["scenarios"]) == ["level_acceleration", "equivalent_tilt"]
+    with pytest.raises(SystemExit):  # motions replace the named scenarios: not both
+        evaluate_main(
+            [*argv, "--suite", "real_motion", "--scenarios", "lift_up", "--out", str(tmp_path / "x")],
+            motions=[level],
+        )

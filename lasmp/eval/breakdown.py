@@ -12,6 +12,10 @@ breakdowns and the failure times (matplotlib; without it the plot is skipped
 with a note). The tilt and forced tables need the probe's columns; without them they say so.
 `--episodes K` keeps Xi_eval's first K episodes (episode < K), so that an evaluation of all 10,000
 compares with one of the first K (episode k is the same trajectory and robot in both).
+`--probe-from DIR2` takes the probe's columns from another evaluation of the same episodes (one run
+with the probe, e.g. Stand Still's, serves every run made with `--no-platform-probe`): the probe
+replays only the platform and the episode's robot's foot friction, so it is the same for every
+controller; the two files must hold the same episodes on the same robots.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.eval.episodes import EpisodesFileError, read_csv
+from lasmp.eval.episodes import PROBE_COLUMNS, EpisodesFileError, read_csv
 
 TILT_BINS_RAD = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)  # the last bin is [0.7, inf)
 FRICTION_BINS = (0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3)  # the testing range, U(0.7, 1.3)
@@ -58,6 +62,24 @@ def first_episodes(t: dict[str, np.ndarray], k: int) -> dict[str, np.ndarray]:
     if int(keep.sum()) != k:
         raise EpisodesFileError(f"asked for the first {k} episodes, the file has {int(keep.sum())} of them")
     return {c: v[keep] for c, v in t.items()}
+
+
+def with_probe_from(t: dict[str, np.ndarray], other: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """`t` with PROBE_COLUMNS taken from `other`, row by episode; refuses a file that lacks one of
+    t's episodes or pairs it with another robot (foot friction) or trajectory (N)."""
+    row = {int(k): i for i, k in enumerate(other["episode"])}
+    missing = [int(k) for k in t["episode"] if int(k) not in row]
+    if missing:
+        raise EpisodesFileError(
+            f"--probe-from lacks {len(missing)} of the episodes, e.g. episode {missing[0]}"
+        )
+    idx = np.array([row[int(k)] for k in t["episode"]])
+    for c in ("foot_friction", "n_waypoints"):
+        if not np.array_equal(t[c], other[c][idx]):
+            raise EpisodesFileError(f"--probe-from holds other episodes: its {c} differs")
+    if not np.isfinite(other["platform_tilt_max_rad"][idx]).any():
+        raise EpisodesFileError("--probe-from has no probe columns (run without --no-platform-probe)")
+    return t | {c: other[c][idx] for c in PROBE_COLUMNS}
 
 
 def breakdown(t: dict[str, np.ndarray], late_s: float = 8.0) -> dict:
@@ -191,6 +213,9 @@ def main(argv=None) -> int:
     p.add_argument("--plot", type=Path, help="also draw the breakdown to this PNG")
     p.add_argument("--late-s", type=float, default=8.0, help="failures after this time count as late (s)")
     p.add_argument("--episodes", type=int, metavar="K", help="only Xi_eval's first K episodes (episode < K)")
+    p.add_argument(
+        "--probe-from", type=Path, metavar="DIR2", help="the probe's columns from DIR2/episodes.csv"
+    )
     args = p.parse_args(argv)
     if args.episodes is not None and args.episodes < 1:
         p.error(f"--episodes must be >= 1, got {args.episodes}")
@@ -198,6 +223,8 @@ def main(argv=None) -> int:
         table = read_csv(args.dir / "episodes.csv")
         if args.episodes is not None:
             table = first_episodes(table, args.episodes)
+        if args.probe_from is not None:
+            table = with_probe_from(table, read_csv(args.probe_from / "episodes.csv"))
     except EpisodesFileError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -201,3 +201,32 @@ def test_breakdown_of_the_first_k_episodes_counts_only_those_and_refuses_a_k_the
     with pytest.raises(SystemExit):
         bd.main([str(tmp_path), "--episodes", "0"])
     assert "--episodes must be >= 1" in capsys.readouterr().err
+
+
+def test_the_probe_columns_of_one_run_serve_another_run_of_the_same_episodes_and_other_episodes_are_refused(
+    tmp_path, capsys
+):
+    with_probe, without = tmp_path / "stand_still", tmp_path / "policy"
+    for d in (with_probe, without):
+        d.mkdir()
+    ep.write_csv(with_probe / "episodes.csv", table())
+    t = table()
+    for c in ep.PROBE_COLUMNS:  # evaluated with --no-platform-probe
+        t[c][:] = np.nan
+    t["collided"] = np.array([1, 0, 0, 0, 0, 1], float)  # its own collisions
+    t["collision_cause"] = np.array(["trunk", "", "", "", "", "FL_hip"], dtype=object)
+    t["collision_time_s"] = np.where(t["collided"] > 0, 2.0, np.nan)
+    ep.write_csv(without / "episodes.csv", t)
+    assert bd.main([str(without), "--probe-from", str(with_probe)]) == 0
+    out = capsys.readouterr().out
+    assert "| forced | 1 | 1 | 1.000 |" in out and "| not forced | 5 | 1 | 0.200 |" in out
+    assert bd.main([str(without), "--probe-from", str(without)]) == 2  # it has none to give
+    assert "has no probe columns" in capsys.readouterr().err
+    other = table()
+    other["foot_friction"] = other["foot_friction"][::-1]  # other robots: other episodes
+    ep.write_csv(with_probe / "episodes.csv", other)
+    assert bd.main([str(without), "--probe-from", str(with_probe)]) == 2
+    assert "its foot_friction differs" in capsys.readouterr().err
+    ep.write_csv(with_probe / "episodes.csv", {c: v[:4] for c, v in table().items()})
+    assert bd.main([str(without), "--probe-from", str(with_probe)]) == 2
+    assert "lacks 2 of the episodes, e.g. episode 4" in capsys.readouterr().err

@@ -17,7 +17,13 @@ estimators' errors averaged over seeds. Written (atomically, strict JSON) to --j
 results/study/summary.json:
 
     {"methods": {NAME: {"seeds": [DIR, ...],
+                        "learner_per_seed": ["bfloat16" | "float32" | null, ...],
                         "metrics": {METRIC: {"mean": m, "ci95": h or null, "per_seed": [v, ...]}}}}}
+
+`learner_per_seed` says how each seed's learner computed (bfloat16 autocast or float32), read from the
+policy checkpoint (`policy_<it>.pt`) beside its metrics.json: `algo.precision=auto` chooses by the
+machine, so seeds trained on different CPUs can differ, and a reader must see it. null: no policy
+checkpoint there (Stand Still) or one saved before the learner was recorded.
 
 Every result must come from the same benchmark and number of episodes.
 """
@@ -33,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
+from lasmp.algo.checkpoint import read_checkpoint
 from lasmp.eval.metrics import ALL_METRICS, METRICS
 from lasmp.eval.report import LABELS, atomic_write_text, dumps
 
@@ -69,6 +76,23 @@ def check_same_benchmark(results: list[dict]) -> None:
         raise ValueError(f"the results come from different benchmarks or episode counts: {sorted(keys)}")
 
 
+def _iteration(path: Path) -> int:
+    tail = path.stem.removeprefix("policy_")
+    return int(tail) if tail.isdigit() else -1
+
+
+def learner_of(d) -> str | None:
+    """'bfloat16' or 'float32': how the learner of the policy checkpoint in directory `d` computed
+    (its latest `policy_<it>.pt`); None without one, or for a checkpoint that did not record it."""
+    policies = sorted(Path(d).glob("policy_*.pt"), key=_iteration)
+    if not policies:
+        return None
+    ran = read_checkpoint(policies[-1]).get("learner_precision") or {}
+    if "bf16_autocast" not in ran:
+        return None
+    return "bfloat16" if ran["bf16_autocast"] else "float32"
+
+
 def t_interval(values) -> tuple[float | None, float | None]:
     """(mean, 95 % t-interval half-width) of per-seed values; (mean, None) for one value; (None, None)
     for none. Values that are missing (None or NaN) are left out."""
@@ -90,7 +114,11 @@ def summarize_method(results: list[dict], seeds: list[str]) -> dict:
             continue  # an older result without this column
         mean, half = t_interval(per_seed)
         metrics[key] = {"mean": mean, "ci95": half, "per_seed": per_seed}
-    entry = {"seeds": [str(s) for s in seeds], "metrics": metrics}
+    entry = {
+        "seeds": [str(s) for s in seeds],
+        "learner_per_seed": [learner_of(s) for s in seeds],
+        "metrics": metrics,
+    }
     est = [r["estimator"] for r in results if r.get("estimator")]
     if est:
         dims = list(dict.fromkeys(d for e in est for d in e["x_exp_mean_abs_error"]))
@@ -118,6 +146,9 @@ def summary(groups: dict[str, list]) -> dict:
     return {"methods": {name: summarize_method(rs, groups[name]) for name, rs in loaded.items()}}
 
 
+SHORT_LEARNER = {"bfloat16": "bf16", "float32": "fp32"}
+
+
 def _cell(m: dict | None, fmt: str = ".3f") -> str:
     if m is None or m["mean"] is None:
         return ""
@@ -129,12 +160,13 @@ def _cell(m: dict | None, fmt: str = ".3f") -> str:
 def metrics_table(summ: dict, columns: tuple[str, ...] = ALL_METRICS) -> str:
     """Methods x metrics, `mean ± ci95` over seeds (a method of one seed: its value)."""
     lines = [
-        "| method | " + " | ".join(LABELS[k] for k in columns) + " | seeds |",
-        "|---|" + "---|" * (len(columns) + 1),
+        "| method | " + " | ".join(LABELS[k] for k in columns) + " | seeds | learner per seed |",
+        "|---|" + "---|" * (len(columns) + 2),
     ]
     for name, entry in summ["methods"].items():
         cells = [_cell(entry["metrics"].get(k)) for k in columns]
-        lines.append(f"| {name} | " + " | ".join(cells) + f" | {len(entry['seeds'])} |")
+        learners = ", ".join(SHORT_LEARNER.get(x, "–") for x in entry.get("learner_per_seed", []))
+        lines.append(f"| {name} | " + " | ".join(cells) + f" | {len(entry['seeds'])} | {learners} |")
     return "\n".join(lines)
 
 

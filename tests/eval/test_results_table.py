@@ -7,7 +7,9 @@ import json
 import math
 
 import pytest
+import torch
 
+from lasmp.algo.checkpoint import CHECKPOINT_FORMAT, REQUIRED_KEYS
 from lasmp.eval import results_table as rt
 from lasmp.eval.metrics import ALL_METRICS, METRICS
 
@@ -69,8 +71,8 @@ def test_method_groups_print_mean_plus_minus_ci95_per_method(tmp_path, capsys):
     out = capsys.readouterr().out
     half = T_975_2 * 0.1 / math.sqrt(3)
     assert f"| LAS-MP | 0.300 ± {half:.3f} | 0.500 ± 0.000 |" in out
-    assert out.splitlines()[0].count("|") == len(METRICS) + 3  # method, five metrics, seeds
-    assert "| Stand Still | 0.650 | 0.500 |" in out and out.splitlines()[3].endswith("| 1 |")
+    assert out.splitlines()[0].count("|") == len(METRICS) + 4  # method, five metrics, seeds, learners
+    assert "| Stand Still | 0.650 | 0.500 |" in out and out.splitlines()[3].endswith("| 1 | – |")
     summ = json.loads((tmp_path / "s.json").read_text())
     assert list(summ["methods"]) == ["LAS-MP", "Stand Still"]
 
@@ -117,3 +119,26 @@ def test_the_command_refuses_bad_groups_and_corrupt_results(tmp_path, capsys):
     with pytest.raises(SystemExit):
         rt.main(["--method", "A", str(tmp_path / "bad"), "--json", str(tmp_path / "s.json")])
     assert "not valid JSON" in capsys.readouterr().err
+
+
+def save_policy(d, iteration, learner):
+    """A policy checkpoint of the format read_checkpoint accepts; `learner`: the recorded parts or None."""
+    data = {"format": CHECKPOINT_FORMAT, "kind": "policy", "iter": iteration}
+    data.update({k: {} for k in REQUIRED_KEYS if k != "iter"})
+    if learner is not None:
+        data["learner_precision"] = learner
+    torch.save(data, d / f"policy_{iteration}.pt")
+
+
+def test_the_summary_says_how_each_seeds_learner_computed_from_its_policy_checkpoint(tmp_path):
+    bf16, fp32 = ({"precision": "auto", "bf16_autocast": flag} for flag in (True, False))
+    dirs = [write(tmp_path, f"seed{k}", 0.1) for k in range(4)]
+    save_policy(dirs[0], 449, bf16)
+    save_policy(dirs[1], 449, fp32)
+    save_policy(dirs[1], 99, bf16)  # an earlier policy beside the latest: the latest speaks
+    save_policy(dirs[2], 449, None)  # saved before the learner was recorded
+    entry = rt.summary({"LAS-MP": dirs})["methods"]["LAS-MP"]
+    assert entry["learner_per_seed"] == ["bfloat16", "float32", None, None]
+    assert (
+        rt.metrics_table({"methods": {"LAS-MP": entry}}).splitlines()[2].endswith("| 4 | bf16, fp32, –, – |")
+    )

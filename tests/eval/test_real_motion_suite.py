@@ -242,9 +242,12 @@ def test_the_suite_plays_motions_given_from_code_and_the_level_acceleration_prob
     )
     probe = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(probe)
-    level, tilt = probe.motions()
-    _, a = derivatives(level)
+    level, tilt, slow = probe.motions()
+    v, a = derivatives(level)
     assert np.abs(a[:, 0]).max() == pytest.approx(1.5, rel=0.01) and np.all(level.pose[:, 1:] == 0)
+    v_slow, a_slow = derivatives(slow)  # the same final speed at under a third of the acceleration
+    assert v_slow[-1, 0] == pytest.approx(v[-1, 0], rel=0.01) and v[-1, 0] == pytest.approx(7.5, rel=0.01)
+    assert np.abs(a_slow[:, 0]).max() < 0.3 * 1.5 and np.all(slow.pose[:, 1:] == 0)
     assert np.abs(tilt.pose[:, 4]).max() == pytest.approx(np.arctan(1.5 / 9.81)) and np.all(
         tilt.pose[:, :4] == 0
     )
@@ -258,3 +261,30 @@ def test_the_suite_plays_motions_given_from_code_and_the_level_acceleration_prob
             [*argv, "--suite", "real_motion", "--scenarios", "lift_up", "--out", str(tmp_path / "x")],
             motions=[level],
         )
+
+
+def test_the_estimates_probe_records_the_true_platform_speed_and_the_estimates_per_motion(
+    tmp_path, small_bench
+):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "estimates", Path(__file__).parents[2] / "scripts" / "level_acceleration_estimates.py"
+    )
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    out = tmp_path / "est"
+    shipped = Path(__file__).parents[2] / "resources" / "policies" / "lasmp_a1.pt"
+    argv = ["--checkpoint", str(shipped), "--robots-per-scenario", "1"]
+    assert script.main([*argv, "--benchmark", str(small_bench), "--out", str(out)]) == 0
+    summary = json.loads((out / "estimates.json").read_text())
+    assert list(summary["motions"]) == ["level_acceleration", "equivalent_tilt", "slow_ramp"]
+    for name, m in summary["motions"].items():
+        assert m["falls"] == len(m["fall_times_s"]) <= 1
+        last = m["windows"][-1]
+        if name == "equivalent_tilt":  # it pitches in place: the platform point barely moves
+            assert max(w["v_plf_true"] for w in m["windows"]) < 0.5
+        elif m["falls"] == 0:  # both surges end at 7.5 m/s along x, in whatever frame the trunk faces
+            assert last["v_plf_true"] == pytest.approx(7.5, abs=0.1) and last["u_aln_true"] < 0.5
+    with pytest.raises(SystemExit):  # the result exists: refused without --force
+        script.main([*argv, "--benchmark", str(small_bench), "--out", str(out)])

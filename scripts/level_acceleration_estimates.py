@@ -1,0 +1,181 @@
+"""What a policy's explicit estimator says during the level-acceleration probe's motions.
+
+    python scripts/level_acceleration_estimates.py --checkpoint resources/policies/lasmp_a1.pt --out DIR
+
+Plays scripts/level_acceleration_probe.py's motions (a steady level push, its equivalent tilt, a
+slow ramp to the push's final speed) to the benchmark's first R robots, as the real-motion suite
+does, and records at every step the true and the estimated x_exp (v_body_b, v_plf_b) and the
+alignment command the actor is given (u_aln from the estimates: v_plf_b,xy - v_body_b,xy and the
+yaw-rate difference). A constant velocity is invisible to the proprioceptive history; an
+acceleration is not. Writes DIR/estimates.json: per motion and per 0.5 s window, the mean over the
+robots still standing of the true and estimated speeds |v_plf_b,xy| and |v_body_b,xy|, the
+estimate errors and |u_aln_hat,xy|, and the fall times; and DIR/estimates.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import torch
+
+from lasmp.eval import cli
+from lasmp.eval.real_motion import suite as rm
+from lasmp.eval.report import atomic_write_text
+from lasmp.eval.run import run_benchmark
+from lasmp.modules.obs_groups import GYRO_Z_COL, alignment_from_estimates
+
+WINDOW_S = 0.5
+V_BODY, V_PLF = slice(4, 6), slice(7, 9)  # the xy columns of v_body_b and v_plf_b in x_exp
+
+
+def probe_motions():
+    path = Path(__file__).with_name("level_acceleration_probe.py")
+    spec = importlib.util.spec_from_file_location("level_acceleration_probe", path)
+    probe = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(probe)
+    return probe.motions()
+
+
+def record(args) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray, float, list[str]]:
+    """Play the motions; (per-episode results, true x_exp (T, n, 13), estimate, u_aln_hat, dt, names)."""
+    motions = probe_motions()
+    bench = cli.load_or_make_benchmark(args.benchmark)
+    episodes = rm.make_episodes(motions, bench.robots, args.robots_per_scenario)
+    extra = rm.env_overrides(max(m.duration_s for m in motions), rm.DEFAULT_DRIVE)
+    build_args = SimpleNamespace(
+        batch_envs=episodes.num_episodes,
+        num_trajectories=episodes.num_episodes,
+        seed=args.seed,
+        controller=None,
+        checkpoint=args.checkpoint,
+    )
+    env, controller, policy, _ = cli.build(build_args, extra)
+    if policy is None or policy.explicit_estimator is None:
+        raise SystemExit("error: the checkpoint's policy has no explicit estimator to record")
+    true_x, est_x, est_u = [], [], []
+
+    def recording(obs):
+        if len(true_x) == 0 and not np.array_equal(
+            env.episode_source.episode_of_env, np.arange(env.num_envs)
+        ):
+            raise RuntimeError("expected env k to play episode k")
+        x_hat, _ = policy.estimates(obs)
+        true_x.append(obs["priv_explicit"][:, : x_hat.shape[1]].numpy().copy())
+        est_x.append(x_hat.numpy().copy())
+        est_u.append(alignment_from_estimates(x_hat, obs["policy"][:, GYRO_Z_COL]).numpy().copy())
+        return controller(obs)
+
+    with torch.inference_mode():
+        run = run_benchmark(
+            env, recording, episodes, episodes.num_episodes, progress=False, shrink_tail=False
+        )
+    return (
+        run["episodes"],
+        np.stack(true_x),
+        np.stack(est_x),
+        np.stack(est_u),
+        env.dt_s,
+        [m.name for m in motions],
+    )
+
+
+def summarize(per_episode, true_x, est_x, est_u, dt, names, robots) -> dict:
+    steps = np.nan_to_num(per_episode["steps"]).astype(int)
+    fell = per_episode["collision"] > 0.5
+    n_window = int(round(WINDOW_S / dt))
+    out = {"window_s": WINDOW_S, "motions": {}}
+    for i, name in enumerate(names):
+        rows = np.arange(i * robots, (i + 1) * robots)
+        standing = np.arange(true_x.shape[0])[:, None] < steps[rows][None, :]  # (T, R)
+        series = {
+            "v_plf_true": np.linalg.norm(true_x[:, rows, V_PLF], axis=-1),
+            "v_plf_est": np.linalg.norm(est_x[:, rows, V_PLF], axis=-1),
+            "v_body_true": np.linalg.norm(true_x[:, rows, V_BODY], axis=-1),
+            "v_body_est": np.linalg.norm(est_x[:, rows, V_BODY], axis=-1),
+            "v_plf_error": np.linalg.norm(est_x[:, rows, V_PLF] - true_x[:, rows, V_PLF], axis=-1),
+            "u_aln_true": np.linalg.norm(true_x[:, rows, V_PLF] - true_x[:, rows, V_BODY], axis=-1),
+            "u_aln_est": np.linalg.norm(est_u[:, rows, :2], axis=-1),
+        }
+        windows = []
+        for start in range(0, true_x.shape[0], n_window):
+            sel = standing[start : start + n_window]
+            if not sel.any():
+                break
+            w = {"t_s": round((start + n_window / 2) * dt, 3), "robots_standing": int(sel[-1].sum())}
+            w.update({k: float(v[start : start + n_window][sel].mean()) for k, v in series.items()})
+            windows.append(w)
+        out["motions"][name] = {
+            "falls": int(fell[rows].sum()),
+            "fall_times_s": sorted(float(x) for x in per_episode["collision_time_s"][rows][fell[rows]]),
+            "windows": windows,
+        }
+    return out
+
+
+def plot(summary: dict, path: Path) -> None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is not installed: no plot", file=sys.stderr)
+        return
+    names = list(summary["motions"])
+    fig, axes = plt.subplots(1, len(names), figsize=(5 * len(names), 3.6), sharey=True)
+    for ax, name in zip(np.atleast_1d(axes), names, strict=True):
+        m = summary["motions"][name]
+        t = [w["t_s"] for w in m["windows"]]
+        for key, style in (
+            ("v_plf_true", "k-"),
+            ("v_plf_est", "C0-"),
+            ("u_aln_true", "k:"),
+            ("u_aln_est", "C3-"),
+        ):
+            ax.plot(t, [w[key] for w in m["windows"]], style, label=key)
+        for ft in m["fall_times_s"]:
+            ax.axvline(ft, color="C1", alpha=0.3, lw=1)
+        ax.set_title(f"{name}: {m['falls']} falls")
+        ax.set_xlabel("t (s)")
+    np.atleast_1d(axes)[0].set_ylabel("m/s (mean over the robots standing)")
+    np.atleast_1d(axes)[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--checkpoint", required=True, help="a LAS-MP checkpoint with an explicit estimator")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--benchmark", type=Path, default=cli.DEFAULT_BENCHMARK)
+    p.add_argument("--robots-per-scenario", type=int, default=rm.DEFAULT_ROBOTS_PER_SCENARIO)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--force", action="store_true", help="overwrite DIR/estimates.json")
+    args = p.parse_args(argv)
+    target = args.out / "estimates.json"
+    if target.exists() and not args.force:
+        p.error(f"{target} exists: give another --out, or --force")
+    per_episode, true_x, est_x, est_u, dt, names = record(args)
+    summary = {"checkpoint": str(args.checkpoint), "robots_per_scenario": args.robots_per_scenario}
+    summary.update(summarize(per_episode, true_x, est_x, est_u, dt, names, args.robots_per_scenario))
+    args.out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(target, json.dumps(summary, indent=1))
+    plot(summary, args.out / "estimates.png")
+    for name, m in summary["motions"].items():
+        print(f"{name}: {m['falls']} falls")
+        for w in m["windows"][::2]:
+            print(
+                f"  t {w['t_s']:5.2f} s  standing {w['robots_standing']:3d}  |v_plf| true {w['v_plf_true']:5.2f} "
+                f"est {w['v_plf_est']:5.2f}  |u_aln| true {w['u_aln_true']:5.2f} est {w['u_aln_est']:5.2f}"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

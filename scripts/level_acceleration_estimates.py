@@ -6,10 +6,13 @@ Plays scripts/level_acceleration_probe.py's motions (a steady level push, its eq
 slow ramp to the push's final speed) to the benchmark's first R robots, as the real-motion suite
 does, and records at every step the true and the estimated x_exp (v_body_b, v_plf_b) and the
 alignment command the actor is given (u_aln from the estimates: v_plf_b,xy - v_body_b,xy and the
-yaw-rate difference). A constant velocity is invisible to the proprioceptive history; an
+yaw-rate difference), with the trunk's posture: its tilt from the world's vertical and from the
+apparent vertical, the direction of a_plf - g at the platform (a trunk that balances a rigid stance
+aligns with the apparent vertical; a level push turns it by atan(1.5 / 9.81) = 0.152 rad, as the
+equivalent tilt does the deck). A constant velocity is invisible to the proprioceptive history; an
 acceleration is not. Writes DIR/estimates.json: per motion and per 0.5 s window, the mean over the
 robots still standing of the true and estimated speeds |v_plf_b,xy| and |v_body_b,xy|, the
-estimate errors and |u_aln_hat,xy|, and the fall times; and DIR/estimates.png.
+estimate errors, |u_aln_hat,xy| and the two tilts, and the fall times; and DIR/estimates.png.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from lasmp.modules.obs_groups import GYRO_Z_COL, alignment_from_estimates
 
 WINDOW_S = 0.5
 V_BODY, V_PLF = slice(4, 6), slice(7, 9)  # the xy columns of v_body_b and v_plf_b in x_exp
+GRAVITY_W = np.array([0.0, 0.0, -9.81])
 
 
 def probe_motions():
@@ -42,8 +46,9 @@ def probe_motions():
     return probe.motions()
 
 
-def record(args) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray, float, list[str]]:
-    """Play the motions; (per-episode results, true x_exp (T, n, 13), estimate, u_aln_hat, dt, names)."""
+def record(args) -> tuple[dict, dict[str, np.ndarray], float, list[str]]:
+    """Play the motions; (per-episode results, per-step arrays (T, n, ...): the true and estimated x_exp,
+    u_aln_hat, the trunk's z axis and the platform's velocity in W; dt, the motions' names)."""
     motions = probe_motions()
     bench = cli.load_or_make_benchmark(args.benchmark)
     episodes = rm.make_episodes(motions, bench.robots, args.robots_per_scenario)
@@ -58,34 +63,42 @@ def record(args) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray, float, list[
     env, controller, policy, _ = cli.build(build_args, extra)
     if policy is None or policy.explicit_estimator is None:
         raise SystemExit("error: the checkpoint's policy has no explicit estimator to record")
-    true_x, est_x, est_u = [], [], []
+    steps: dict[str, list] = {k: [] for k in ("true_x", "est_x", "est_u", "z_trunk_w", "v_plf_w")}
 
     def recording(obs):
-        if len(true_x) == 0 and not np.array_equal(
+        if not steps["true_x"] and not np.array_equal(
             env.episode_source.episode_of_env, np.arange(env.num_envs)
         ):
             raise RuntimeError("expected env k to play episode k")
         x_hat, _ = policy.estimates(obs)
-        true_x.append(obs["priv_explicit"][:, : x_hat.shape[1]].numpy().copy())
-        est_x.append(x_hat.numpy().copy())
-        est_u.append(alignment_from_estimates(x_hat, obs["policy"][:, GYRO_Z_COL]).numpy().copy())
+        steps["true_x"].append(obs["priv_explicit"][:, : x_hat.shape[1]].numpy().copy())
+        steps["est_x"].append(x_hat.numpy().copy())
+        steps["est_u"].append(alignment_from_estimates(x_hat, obs["policy"][:, GYRO_Z_COL]).numpy().copy())
+        steps["z_trunk_w"].append(env.readout.r_wb[:, :, 2].cpu().numpy().copy())
+        steps["v_plf_w"].append(env.readout.v_plf_w.cpu().numpy().copy())
         return controller(obs)
 
     with torch.inference_mode():
         run = run_benchmark(
             env, recording, episodes, episodes.num_episodes, progress=False, shrink_tail=False
         )
-    return (
-        run["episodes"],
-        np.stack(true_x),
-        np.stack(est_x),
-        np.stack(est_u),
-        env.dt_s,
-        [m.name for m in motions],
-    )
+    return run["episodes"], {k: np.stack(v) for k, v in steps.items()}, env.dt_s, [m.name for m in motions]
 
 
-def summarize(per_episode, true_x, est_x, est_u, dt, names, robots) -> dict:
+def tilts(z_trunk_w: np.ndarray, v_plf_w: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """(T, n) angles, rad, of the trunk's z axis from the world's vertical and from the apparent
+    vertical a_plf - g (a_plf: the platform's velocity differenced over the steps)."""
+    a = np.gradient(v_plf_w, dt, axis=0)
+    up = a - GRAVITY_W
+    up /= np.linalg.norm(up, axis=-1, keepdims=True)
+    world = np.arccos(np.clip(z_trunk_w[..., 2], -1.0, 1.0))
+    apparent = np.arccos(np.clip(np.sum(z_trunk_w * up, axis=-1), -1.0, 1.0))
+    return world, apparent
+
+
+def summarize(per_episode, arrays: dict[str, np.ndarray], dt, names, robots) -> dict:
+    true_x, est_x, est_u = arrays["true_x"], arrays["est_x"], arrays["est_u"]
+    tilt_world, tilt_apparent = tilts(arrays["z_trunk_w"], arrays["v_plf_w"], dt)
     steps = np.nan_to_num(per_episode["steps"]).astype(int)
     fell = per_episode["collision"] > 0.5
     n_window = int(round(WINDOW_S / dt))
@@ -101,6 +114,8 @@ def summarize(per_episode, true_x, est_x, est_u, dt, names, robots) -> dict:
             "v_plf_error": np.linalg.norm(est_x[:, rows, V_PLF] - true_x[:, rows, V_PLF], axis=-1),
             "u_aln_true": np.linalg.norm(true_x[:, rows, V_PLF] - true_x[:, rows, V_BODY], axis=-1),
             "u_aln_est": np.linalg.norm(est_u[:, rows, :2], axis=-1),
+            "tilt_world_rad": tilt_world[:, rows],
+            "tilt_from_apparent_vertical_rad": tilt_apparent[:, rows],
         }
         windows = []
         for start in range(0, true_x.shape[0], n_window):
@@ -161,9 +176,9 @@ def main(argv=None) -> int:
     target = args.out / "estimates.json"
     if target.exists() and not args.force:
         p.error(f"{target} exists: give another --out, or --force")
-    per_episode, true_x, est_x, est_u, dt, names = record(args)
+    per_episode, arrays, dt, names = record(args)
     summary = {"checkpoint": str(args.checkpoint), "robots_per_scenario": args.robots_per_scenario}
-    summary.update(summarize(per_episode, true_x, est_x, est_u, dt, names, args.robots_per_scenario))
+    summary.update(summarize(per_episode, arrays, dt, names, args.robots_per_scenario))
     args.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(target, json.dumps(summary, indent=1))
     plot(summary, args.out / "estimates.png")
@@ -172,7 +187,8 @@ def main(argv=None) -> int:
         for w in m["windows"][::2]:
             print(
                 f"  t {w['t_s']:5.2f} s  standing {w['robots_standing']:3d}  |v_plf| true {w['v_plf_true']:5.2f} "
-                f"est {w['v_plf_est']:5.2f}  |u_aln| true {w['u_aln_true']:5.2f} est {w['u_aln_est']:5.2f}"
+                f"est {w['v_plf_est']:5.2f}  |u_aln| true {w['u_aln_true']:5.2f} est {w['u_aln_est']:5.2f}  "
+                f"tilt: world {w['tilt_world_rad']:5.3f} apparent {w['tilt_from_apparent_vertical_rad']:5.3f}"
             )
     return 0
 

@@ -284,6 +284,8 @@ def test_the_estimates_probe_records_the_true_platform_speed_and_the_estimates_p
         last = m["windows"][-1]
         if name == "equivalent_tilt":  # it pitches in place: the platform point barely moves
             assert max(w["v_plf_true"] for w in m["windows"]) < 0.5
+            for w in m["windows"]:  # it does not translate: the apparent vertical is the world's
+                assert w["tilt_from_apparent_vertical_rad"] == pytest.approx(w["tilt_world_rad"], abs=0.02)
         elif m["falls"] == 0:  # both surges end at 7.5 m/s along x, in whatever frame the trunk faces
             assert last["v_plf_true"] == pytest.approx(7.5, abs=0.1) and last["u_aln_true"] < 0.5
     with pytest.raises(SystemExit):  # the result exists: refused without --force

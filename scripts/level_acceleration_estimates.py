@@ -173,6 +173,7 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--force", action="store_true", help="overwrite DIR/estimates.json")
     args = p.parse_args(argv)
+    torch.set_num_threads(1)  # as evaluate.py: more threads contend with the physics thread pool
     target = args.out / "estimates.json"
     if target.exists() and not args.force:
         p.error(f"{target} exists: give another --out, or --force")

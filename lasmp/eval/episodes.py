@@ -189,11 +189,14 @@ def _full_length_env_class():
 
 
 def probe_platform(
-    env_cfg, bench, num_episodes: int, num_envs: int, progress: bool = True
+    env_cfg, bench, num_episodes: int, num_envs: int, progress: bool = True, stats=None
 ) -> dict[str, np.ndarray]:
     """The probe columns of benchmark episodes 0..num_episodes-1 (module docstring), in the world of
     `env_cfg` (a MovingPlatformCfg: the evaluation env's; its num_envs is replaced). An episode cut
-    short by a fault has its probe columns NaN."""
+    short by a fault has its probe columns NaN. `stats`: what to compute from each whole motion,
+    called as `motion_stats` is (the default) and returning per-episode arrays under its own keys
+    (scripts/apparent_vertical_stats.py measures other things of the same motions)."""
+    stats = stats or motion_stats
     import copy
 
     cfg = copy.deepcopy(env_cfg)
@@ -202,7 +205,7 @@ def probe_platform(
     n, horizon, dt = env.num_envs, env.max_episode_length, env.dt_s
     source = BenchmarkSource(bench, num_episodes, n)
     env.episode_source = source
-    out = {k: np.full(num_episodes, np.nan) for k in PROBE_COLUMNS}
+    out: dict[str, np.ndarray] = {}
     buf = {
         "r_wp": np.zeros((horizon + 1, n, 3, 3)),
         "v": np.zeros((horizon + 1, n, 3)),
@@ -235,11 +238,11 @@ def probe_platform(
             whole = ended[extras["time_outs"].cpu().numpy()[ended]]  # the others faulted: no probe
             if len(whole):
                 mu = bench.robots.foot_friction[bench.pairing(ep[whole])[1]]
-                stats = motion_stats(
+                values = stats(
                     dt, buf["r_wp"][:, whole], buf["v"][:, whole], buf["omega"][:, whole], mu, env.plf_top_m
                 )
-                for key, value in stats.items():
-                    out[key][ep[whole]] = value
+                for key, value in values.items():
+                    out.setdefault(key, np.full(num_episodes, np.nan))[ep[whole]] = value
             done_count += len(ended)
             restarted = np.flatnonzero(done)
             length[restarted] = 0
@@ -257,6 +260,8 @@ def probe_platform(
     if progress:
         print(file=sys.stderr)
     env.on_step = env.episode_source = env.stepped_envs = None
+    if stats is motion_stats:  # every column, NaN where no episode was whole
+        out = {k: out.get(k, np.full(num_episodes, np.nan)) for k in PROBE_COLUMNS}
     return out
 
 

@@ -290,3 +290,32 @@ def test_the_estimates_probe_records_the_true_platform_speed_and_the_estimates_p
             assert last["v_plf_true"] == pytest.approx(7.5, abs=0.1) and last["u_aln_true"] < 0.5
     with pytest.raises(SystemExit):  # the result exists: refused without --force
         script.main([*argv, "--benchmark", str(small_bench), "--out", str(out)])
+
+
+def test_the_apparent_vertical_stats_see_the_level_push_and_not_the_tilt_and_replay_the_benchmark(
+    small_bench, tmp_path
+):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "avs", Path(__file__).parents[2] / "scripts" / "apparent_vertical_stats.py"
+    )
+    avs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(avs)
+    over = np.array([[1, 0], [1, 1], [0, 1], [1, 1], [1, 1]], dtype=bool)  # (T, m)
+    assert avs.longest_stretch(over).tolist() == [2, 4]
+    probe = avs.probe_motion_stats(0.02)
+    push, tilt = probe["level_acceleration"], probe["equivalent_tilt"]
+    tilt_rad = np.arctan(1.5 / 9.81)
+    assert push["world_max_rad"] == pytest.approx(tilt_rad, rel=1e-3) == push["deck_max_rad"]
+    assert tilt["deck_max_rad"] == pytest.approx(tilt_rad, rel=1e-3) and tilt["world_max_rad"] < 1e-6
+    assert 4.0 < push["world_longest_over_s"] < 5.5 and tilt["world_longest_over_s"] == 0.0
+    out = tmp_path / "avs.json"
+    assert (
+        avs.main(["--episodes", "2", "--batch-envs", "2", "--benchmark", str(small_bench), "--out", str(out)])
+        == 0
+    )
+    xi = json.loads(out.read_text())["xi_eval"]
+    assert len(xi["world_max_rad"]) == 2 and all(0.0 <= x < 1.0 for x in xi["world_max_rad"])
+    with pytest.raises(SystemExit):  # the result exists: refused without --force
+        avs.main(["--episodes", "2", "--benchmark", str(small_bench), "--out", str(out)])

@@ -13,9 +13,16 @@ later sitting. Evaluations go to results/study/<method>[@<N>]/seed<k>/ (committe
 config, its policy checkpoint (`policy_<N-1>.pt`) and learning curve (`curves_<N>.json`). Every run has
 the same budget: 450 iterations x 1,024 envs (the cpu preset), in the default configuration.
 
-LAS-MP seed 0 comes first, with its continuation to 1,000 iterations (the shipped policy), then
-LAS-MP seeds 1 and 2, then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000
-iterations.
+LAS-MP's seeds 0, 1 and 2 come first, then seed 0's continuation to 1,000 iterations (the shipped
+policy), then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000 iterations.
+
+Every run trains with the bfloat16 learner (`algo.precision=bfloat16`: bfloat16 autocast, fused Adam,
+compiled MLPs) (ours): `auto` chooses by the CPU, and the study's machines differ. LAS-MP's first
+seeds ran float32 on a CPU where bfloat16 did not pay, every other run bfloat16, and the one LAS-MP
+seed retrained under bfloat16 collided in 0.092 of Xi_eval's first 2,000 episodes against its float32
+run's 0.137 (results/study/README.md, "The learner"). One learner for every row keeps that out of the
+comparison; those float32 runs are kept in results/study/float32_learner/ as rows of their own.
+A CPU without native bfloat16 (AVX2 only: autocast there is about 20 times slower) is refused.
 
 The study's first pass, under rsl_rl's entropy bonus (`algo.entropy_coef=0.01`, the default until
 that pass showed it degrades LAS-MP from curriculum level 10 on: docs/results.md), is kept in
@@ -54,6 +61,13 @@ METHODS = {
     "no_explicit_estimator": ["policy=no_explicit_estimator"],
     "no_explicit_estimator_history": ["policy=no_explicit_estimator_history"],
     "rs": ["task=rough_static"],
+}
+LEARNER = "algo.precision=bfloat16"  # the study's one learner (the docstring)
+FLOAT32_LEARNER = "float32_learner"  # under RESULTS: LAS-MP's runs under float32, before the pin
+# their rows: name -> (method, iterations, seeds); seed 2 ran float32 to 244 and bfloat16 after: no row
+FLOAT32_ROWS = {
+    "LAS-MP, float32 learner": ("lasmp", BUDGET, (0, 1)),
+    "LAS-MP (1,000 it.), float32 learner": ("lasmp", HEADLINE, (0,)),
 }
 FLOAT32 = "lasmp_float32"  # the fast-learner comparison, in the first pass: not a row of the table
 FLOAT32_SEEDS = (0, 1)
@@ -98,6 +112,19 @@ def execute(cmd: list[str], log: Path) -> None:
     subprocess.run(["nice", "-n", "10", *cmd], cwd=ROOT, check=True)
 
 
+def check_learner(cpuinfo: str | None = None) -> None:
+    """Refuse a CPU where the study's bfloat16 learner would be emulated (cpuinfo: /proc/cpuinfo's
+    text, read when None)."""
+    from lasmp.algo.precision import cpu_has_fast_bf16
+
+    if not cpu_has_fast_bf16(cpuinfo):
+        raise SystemExit(
+            f"the study trains every run with {LEARNER}, and this CPU lacks AVX-512 BF16/AMX: bfloat16 "
+            "autocast would be emulated, about 20 times slower. Continue the study on a CPU that has it "
+            "(grep avx512_bf16 /proc/cpuinfo)."
+        )
+
+
 def train(method: str, seed: int, until: int = BUDGET) -> None:
     d = run_dir(method, seed)
     done = last_iteration(d) + 1
@@ -105,10 +132,12 @@ def train(method: str, seed: int, until: int = BUDGET) -> None:
         print(f"{method} seed {seed}: {done} iterations done (>= {until})")
         record_run(method, seed, until)
         return
+    check_learner()
     cmd = [
         sys.executable,
         "train.py",
         *METHODS[method],
+        LEARNER,
         f"seed={seed}",
         "runner.save_interval=25",
         f"runner.log_dir={d.relative_to(ROOT)}",
@@ -175,9 +204,9 @@ def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
 
 def steps():
     """Every step of the study in order: (kind, method, seed, iterations)."""
-    # seed 0 first, then its continuation to 1,000 iterations: the new shipped policy, as early as
-    # its checkpoint allows
-    order = [("lasmp", 0, BUDGET), ("lasmp", 0, HEADLINE)] + [("lasmp", s, BUDGET) for s in SEEDS[1:]]
+    # LAS-MP's three seeds first (the row the others are compared with), then seed 0's continuation
+    # to 1,000 iterations: the new shipped policy
+    order = [("lasmp", s, BUDGET) for s in SEEDS] + [("lasmp", 0, HEADLINE)]
     order += [(m, s, BUDGET) for s in SEEDS for m in METHODS if m != "lasmp"]
     order += [("lasmp", s, HEADLINE) for s in SEEDS[1:]]
     for method, seed, at in order:
@@ -196,13 +225,16 @@ def is_done(kind: str, method: str, seed: int, at: int) -> bool:
 
 
 def summary_args() -> list[str]:
-    """results_table's --method groups: every row with at least one evaluated seed, and Stand Still."""
+    """results_table's --method groups: every row with at least one evaluated seed (the study's, then
+    the float32 learner's), and Stand Still."""
+    rows = {name: [result_dir(m, s, at, c) for s in SEEDS] for name, (m, at, c) in ROWS.items()}
+    for name, (m, at, seeds) in FLOAT32_ROWS.items():
+        rows[name] = [result_dir(m, s, at, root=RESULTS / FLOAT32_LEARNER) for s in seeds]
     args = []
-    for name, (method, at, controller) in ROWS.items():
-        dirs = [result_dir(method, s, at, controller) for s in SEEDS]
-        dirs = [str(d.relative_to(ROOT)) for d in dirs if (d / "metrics.json").exists()]
-        if dirs:
-            args += ["--method", name, *dirs]
+    for name, dirs in rows.items():
+        done = [str(d.relative_to(ROOT)) for d in dirs if (d / "metrics.json").exists()]
+        if done:
+            args += ["--method", name, *done]
     return args + ["--method", "Stand Still", str(STAND_STILL.relative_to(ROOT))]
 
 

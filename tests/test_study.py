@@ -30,6 +30,8 @@ def study(tmp_path, monkeypatch):
     mod.real_execute = mod.execute
     monkeypatch.setattr(mod, "execute", lambda cmd, log: ran.append(cmd[1:]))
     monkeypatch.setattr(mod, "record_run", lambda *a: None)
+    mod.real_check_learner = mod.check_learner
+    monkeypatch.setattr(mod, "check_learner", lambda cpuinfo=None: None)  # CI's CPU may lack bfloat16
     mod.ran = ran
     return mod
 
@@ -45,13 +47,13 @@ def evaluated(d: Path):
     (d / "metrics.json").write_text("{}")
 
 
-def test_the_study_runs_las_mp_seed_0_and_the_shipped_policy_then_the_other_seeds_then_the_rest(study):
+def test_the_study_runs_las_mp_s_three_seeds_then_the_shipped_policy_then_the_rest(study):
     order = [(m, s, n) for kind, m, s, n in study.steps() if kind == "train"]
     assert order[:5] == [
         ("lasmp", 0, 450),
-        ("lasmp", 0, 1000),
         ("lasmp", 1, 450),
         ("lasmp", 2, 450),
+        ("lasmp", 0, 1000),
         ("lasmp_centre", 0, 450),
     ]
     assert order[-2:] == [("lasmp", 1, 1000), ("lasmp", 2, 1000)]
@@ -63,7 +65,9 @@ def test_next_trains_the_first_unfinished_run_and_resumes_it_where_it_stopped(st
     trained(study, "lasmp", 0, 450)
     evaluated(study.result_dir("lasmp", 0, 450))
     trained(study, "lasmp", 0, 700)  # on its way to 1,000 iterations
-    trained(study, "lasmp", 1, 450)
+    for seed in (1, 2):
+        trained(study, "lasmp", seed, 450)
+        evaluated(study.result_dir("lasmp", seed, 450))
     study.main(["next"])
     cmd = study.ran[-1]
     assert cmd[0] == "train.py" and "seed=0" in cmd
@@ -94,6 +98,21 @@ def test_a_method_trains_with_its_overrides_and_is_evaluated_on_all_of_xi_eval(s
         study.evaluate("lasmp", 2)
     with pytest.raises(SystemExit):
         study.main(["train", "lasmp_float32", "0"])
+
+
+def test_every_run_trains_with_the_bfloat16_learner_and_a_cpu_without_it_is_refused(study, monkeypatch):
+    study.train("no_explicit_estimator", 2)
+    assert "algo.precision=bfloat16" in study.ran[-1]
+    study.real_check_learner("flags\t\t: fpu sse avx2 avx512f avx512_bf16\n")  # AVX-512 BF16: no error
+    with pytest.raises(SystemExit, match="lacks AVX-512 BF16/AMX"):
+        study.real_check_learner("flags\t\t: fpu sse avx2 fma\n")
+    from lasmp.algo import precision
+
+    monkeypatch.setattr(precision, "cpu_has_fast_bf16", lambda cpuinfo=None: False)
+    monkeypatch.setattr(study, "check_learner", study.real_check_learner)
+    with pytest.raises(SystemExit, match="20 times slower"):
+        study.train("rs", 1)
+    assert len(study.ran) == 1  # refused before it ran
 
 
 def test_each_command_is_logged_with_its_time_and_commit_before_it_runs(study, tmp_path):
@@ -127,10 +146,14 @@ def test_the_summary_lists_each_row_with_its_evaluated_seeds_and_leaves_out_the_
     evaluated(study.result_dir("lasmp", 0, 1000))
     evaluated(study.result_dir("lasmp", 1, 450, root=study.FIRST_PASS))
     evaluated(study.result_dir("rs", 1, 450, "rs_oracle"))
+    for s in (0, 1, 2):  # seed 2 ran float32 and then bfloat16: in no row
+        evaluated(study.result_dir("lasmp", s, 450, root=study.RESULTS / "float32_learner"))
     assert study.summary_args() == [
         "--method", "LAS-MP", "results/study/lasmp/seed0", "results/study/lasmp/seed2",
         "--method", "LAS-MP (1,000 it.)", "results/study/lasmp@1000/seed0",
         "--method", "R-S (oracle)", "results/study/rs_oracle/seed1",
+        "--method", "LAS-MP, float32 learner",
+        "results/study/float32_learner/lasmp/seed0", "results/study/float32_learner/lasmp/seed1",
         "--method", "Stand Still", "results/study/stand_still/seed0",
     ]  # fmt: skip
 

@@ -4,8 +4,10 @@ The policy plays 20 s on a platform that does not move (the real-motion suite's 
 the checkpoint's own robot randomization, in six input modes: everything estimated (deployment),
 and the estimates with one part replaced by the truth: the explicit estimates x_exp (contacts and
 velocities), the contacts only, the velocities only (body and platform velocities, which also
-rebuild u_aln), the implicit latent l_imp, and x_exp plus l_imp (= the privileged inputs). Prints
-one JSON object: the share of episodes that end in a collision or fall, per mode.
+rebuild u_aln), the implicit latent l_imp, and x_exp plus l_imp (= the privileged inputs); and one
+mode that asks whether the policy uses its explicit estimates at all: each env is fed another env's
+estimates x_exp (a fixed derangement of the envs; its own l_imp and proprioception). Prints one JSON
+object: the share of episodes that end in a collision or fall, per mode.
 
 With `--benchmark-episodes K`, the platform plays the first K trajectories of Xi_eval instead
 (one episode per env, the env's default platform drive, robots drawn from the testing ranges):
@@ -41,7 +43,16 @@ MODES = {
     "true velocities": "v",
     "true l_imp": "l",
     "privileged (true x_exp and l_imp)": "xl",
+    "another env's x_exp": "s",
 }
+
+
+def derangement(n: int, seed: int = 0) -> np.ndarray:
+    """A permutation of range(n) that moves every index: env i reads env perm[i]'s estimates."""
+    if n < 2:
+        raise ValueError(f"another env's estimates need at least 2 envs, got {n}")
+    perm = np.random.default_rng(seed).permutation(n)
+    return np.roll(perm, 1)[np.argsort(perm)]
 
 
 BENCHMARK_ENV = {"domain_rand": {"split": "test"}, "curriculum": {"enabled": False}}  # as evaluate.py's
@@ -58,6 +69,7 @@ def collision_rate(
     )
     estimated = pol._estimated_inputs
     current = {}
+    other = torch.as_tensor(derangement(n)) if "s" in truth else None
 
     def mixed(o, history_n):
         x_hat, l_hat, _ = estimated(o, history_n)
@@ -69,6 +81,8 @@ def collision_rate(
             x_hat = torch.cat([x_true[:, :N_CONTACTS], x_hat[:, N_CONTACTS:]], 1)
         if "v" in truth:
             x_hat = torch.cat([x_hat[:, :N_CONTACTS], x_true[:, N_CONTACTS:]], 1)
+        if "s" in truth:
+            x_hat = x_hat[other]
         if "l" in truth:
             l_hat = pol.encoder(obs["priv_implicit"])
         u_hat = alignment_from_estimates(x_hat, o[:, GYRO_Z_COL]) if pol.use_alignment else None
@@ -99,7 +113,7 @@ def main(argv=None) -> dict:
         nargs="+",
         choices=list(MODES.values()),
         default=list(MODES.values()),
-        help="truth substituted: '' none, x, c, v, l, xl (default: all six)",
+        help="truth substituted: '' none, x, c, v, l, xl; s: another env's x_exp (default: all seven)",
     )
     ap.add_argument(
         "--benchmark-episodes",
@@ -123,6 +137,8 @@ def main(argv=None) -> dict:
             n, duration_s = args.benchmark_episodes, None
             trj.save(path, bench.trajectories.subset(np.arange(n)))
             out = {"checkpoint": args.checkpoint, "benchmark": args.benchmark, "episodes": n}
+        if "s" in args.modes and n < 2:
+            ap.error("mode s (another env's x_exp) needs at least 2 envs or episodes")
         out["collision_rate"] = {
             label: collision_rate(args.checkpoint, path, duration_s, n, args.seed, truth)
             for label, truth in MODES.items()

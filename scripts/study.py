@@ -80,7 +80,7 @@ ROWS = {
     "w/o alignment command": ("no_alignment_command", BUDGET, None),
     "w/o platform velocity estimates": ("no_platform_velocity_estimates", BUDGET, None),
     "w/o explicit estimator": ("no_explicit_estimator", BUDGET, None),
-    "w/o explicit estimator history": ("no_explicit_estimator_history", BUDGET, None),
+    "w/o explicit estimator, with the history": ("no_explicit_estimator_history", BUDGET, None),
     "R-S": ("rs", BUDGET, "rs"),
     "R-S (oracle)": ("rs", BUDGET, "rs_oracle"),
 }

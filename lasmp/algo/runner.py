@@ -187,19 +187,25 @@ class LasmpRunner(OnPolicyRunner):
             self.device = dp.rank_device(self.device, ranks)
             dp.setup(ranks, self.device)
 
-    def _share_iteration_end(self, it: int) -> None:
-        """Every rank at the end of iteration `it`: one curriculum, one decision to stop, and, before a
-        save, the other ranks' running state on rank 0."""
+    def _share_iteration_end(self, it: int) -> int | None:
+        """Every rank at the end of iteration `it`: one curriculum, one decision to stop (returned: the
+        signal, or None), and, before a save, the other ranks' running state on rank 0."""
         if hasattr(getattr(self.env, "curriculum", None), "sync"):
             self.env.curriculum.sync()
-        self._signal = dp.any_rank(self._signal or 0, self.device) or None
-        saving = (
-            self._signal is not None or it == self._final_iteration or it % self.cfg["save_interval"] == 0
-        )
+        stop = self._agreed_signal()
+        saving = stop is not None or it == self._final_iteration or it % self.cfg["save_interval"] == 0
         if saving:
             mine = {"run": self.env.state_dict()["run"], "rng_state": rng_state(self.env.rng)}
             gathered = dp.gather_to_main(mine)
             self._other_ranks = gathered[1:] if gathered is not None else None
+        return stop
+
+    def _agreed_signal(self) -> int | None:
+        """The signal any rank has received, the same answer on every rank. The handler's own record
+        is only read, never overwritten: a signal that lands while this rank waits in the collective
+        (after it has given 0) is counted at the next iteration's end, by every rank at once, instead
+        of being lost (torchrun would then kill the job without a checkpoint 30 s later)."""
+        return dp.any_rank(self._signal or 0, self.device) or None
 
     def _this_ranks_state(self, data: dict, run: bool) -> dict:
         """A resume in a job of K ranks: rank k's envs' running state and random state from the
@@ -267,16 +273,15 @@ class LasmpRunner(OnPolicyRunner):
 
     def _after_iteration(self, it: int) -> None:
         self._faults_before = getattr(self.env, "fault_count", 0)  # the next rollout's faults count from here
-        if self.is_distributed:
-            self._share_iteration_end(it)
-        if self._signal is None:
+        stop = self._share_iteration_end(it) if self.is_distributed else self._signal
+        if stop is None:
             return
         path = None
         if self.logger.log_dir is not None:
             path = str(Path(self.logger.log_dir) / f"model_{it}.pt")
             self.save(path)
             self.logger.stop_logging_writer()
-        raise TrainingInterrupted(self._signal, it, path)
+        raise TrainingInterrupted(stop, it, path)
 
     def learn(self, num_learning_iterations: int, init_at_random_ep_len: bool = False) -> None:
         """rsl_rl's loop; SIGINT / SIGTERM (main thread only) end it after the current iteration with a

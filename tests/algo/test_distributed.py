@@ -161,6 +161,28 @@ def test_sigterm_to_the_job_stops_both_ranks_after_the_same_iteration_with_one_c
     assert data["iter"] == stopped and len(data["other_ranks"]) == 1
 
 
+def test_a_signal_that_lands_during_the_stop_collective_is_counted_at_the_next_iteration_end(monkeypatch):
+    """The race that lost a SIGTERM (CI, 2026-12-03): the handler ran while the rank waited in the
+    all-reduce it had given 0 to; the reduced 0 overwrote the handler's record, no rank ever stopped,
+    and torchrun killed the job 30 s later without a checkpoint."""
+    from lasmp.algo import distributed as dp
+    from lasmp.algo.runner import LasmpRunner
+
+    runner = LasmpRunner.__new__(LasmpRunner)  # the decision reads nothing but the signal state
+    runner._signal, runner.device = None, "cpu"
+    given = []
+
+    def all_reduce_max_of_one_rank(flag, device):
+        given.append(flag)
+        if len(given) == 1:
+            runner._on_signal(signal.SIGTERM, None)  # arrives while this rank waits for the others
+        return flag
+
+    monkeypatch.setattr(dp, "any_rank", all_reduce_max_of_one_rank)
+    assert runner._agreed_signal() is None  # this iteration's answer was already given
+    assert runner._agreed_signal() == signal.SIGTERM and given == [0, signal.SIGTERM]
+
+
 def _curriculum_rank(rank: int, port: int, out: str) -> None:
     import torch.distributed as dist
 

@@ -1,15 +1,10 @@
 """bench/deployment_gap.py's input modes: the shuffled-estimates probe feeds each env another env's x_exp."""
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
+from testkit import load_script
 
-_PATH = Path(__file__).resolve().parents[1] / "bench" / "deployment_gap.py"
-_SPEC = importlib.util.spec_from_file_location("deployment_gap_bench", _PATH)
-gap = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(gap)
+gap = load_script("bench/deployment_gap.py")
 
 
 @pytest.mark.parametrize("n", [2, 3, 7, 1000])

@@ -11,18 +11,14 @@ slips more than 5 cm over the hold.
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import pytest
+from testkit import load_script
 
 from lasmp.config import SimCfg
 
-_PATH = Path(__file__).resolve().parents[1] / "bench" / "friction_cone.py"
-_SPEC = importlib.util.spec_from_file_location("friction_cone_bench", _PATH)
-fc = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(fc)
+fc = load_script("bench/friction_cone.py")
 
 BLOCK_MU = 0.5
 ROBOT_MU = 0.3  # low enough that the robot slides (16.7 deg) before it tips over sideways (~23 deg)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -13,6 +12,7 @@ import numpy as np
 import pytest
 import torch
 from omegaconf import OmegaConf
+from testkit import load_script
 
 from lasmp.deploy import load_deploy_env, obs_window
 from lasmp.play import main
@@ -426,11 +426,7 @@ def test_render_model_of_rough_static_task():
 def test_curriculum_probe_plays_one_episode_per_env_and_zero_noise_sampling_equals_the_mean(
     run_dir, tmp_path
 ):
-    spec = importlib.util.spec_from_file_location(
-        "curriculum_probe", ROOT / "scripts" / "curriculum_probe.py"
-    )
-    probe = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(probe)
+    probe = load_script("scripts/curriculum_probe.py")
     out = tmp_path / "probe.json"
     assert probe.main([str(run_dir), "--envs", "2", "--std-scales", "0", "--json", str(out)]) == 0
     results = json.loads(out.read_text())

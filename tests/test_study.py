@@ -3,7 +3,6 @@ the rows it hands to the results table, on a constructed runs/ and results/ tree
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shlex
 import subprocess
@@ -12,15 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from testkit import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture
 def study(tmp_path, monkeypatch):
-    spec = importlib.util.spec_from_file_location("study_script", ROOT / "scripts" / "study.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = load_script("scripts/study.py")
     monkeypatch.setattr(mod, "ROOT", tmp_path)
     monkeypatch.setattr(mod, "RUNS", tmp_path / "runs" / "study")
     monkeypatch.setattr(mod, "RESULTS", tmp_path / "results" / "study")

@@ -1,16 +1,21 @@
-"""What several test modules build: the tiny training configuration and a hostile checkpoint.
+"""What several test modules build: the tiny training configuration, a hostile checkpoint and the
+scripts (bench/, scripts/) loaded as modules.
 
 A plain module (pytest's `pythonpath` puts tests/ on sys.path): `from testkit import tiny`."""
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
+from types import ModuleType
 
 import torch
 from omegaconf import DictConfig, OmegaConf
 
 from lasmp.algo.checkpoint import CHECKPOINT_FORMAT
 from lasmp.train_cfg import TrainCfg, to_train_cfg
+
+ROOT = Path(__file__).resolve().parents[1]
 
 # 4 envs, small networks, 2 iterations, a checkpoint every iteration
 TINY = {
@@ -67,3 +72,12 @@ def hostile_checkpoint(path: Path, marker: Path) -> Path:
     }
     torch.save(data, path)
     return path
+
+
+def load_script(path: str) -> ModuleType:
+    """A script of the repository (`path` from its root, e.g. "bench/friction_cone.py") as a fresh
+    module: the scripts are not a package, and each load runs the file anew."""
+    spec = importlib.util.spec_from_file_location(Path(path).stem + "_script", ROOT / path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from testkit import load_script
 
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
@@ -233,15 +234,9 @@ def test_motion_rejects_a_motion_that_does_not_start_at_rest_pose():
 def test_the_suite_plays_motions_given_from_code_and_the_level_acceleration_probe_matches_its_tilt(
     tmp_path, small_bench
 ):
-    import importlib.util
-
     from lasmp.motions.motion import derivatives
 
-    spec = importlib.util.spec_from_file_location(
-        "probe", Path(__file__).parents[2] / "scripts" / "level_acceleration_probe.py"
-    )
-    probe = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(probe)
+    probe = load_script("scripts/level_acceleration_probe.py")
     level, tilt, slow = probe.motions()
     v, a = derivatives(level)
     assert np.abs(a[:, 0]).max() == pytest.approx(1.5, rel=0.01) and np.all(level.pose[:, 1:] == 0)
@@ -266,13 +261,7 @@ def test_the_suite_plays_motions_given_from_code_and_the_level_acceleration_prob
 def test_the_estimates_probe_records_the_true_platform_speed_and_the_estimates_per_motion(
     tmp_path, small_bench
 ):
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(
-        "estimates", Path(__file__).parents[2] / "scripts" / "level_acceleration_estimates.py"
-    )
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = load_script("scripts/level_acceleration_estimates.py")
     out = tmp_path / "est"
     shipped = Path(__file__).parents[2] / "resources" / "policies" / "lasmp_a1.pt"
     argv = ["--checkpoint", str(shipped), "--robots-per-scenario", "1"]
@@ -295,13 +284,7 @@ def test_the_estimates_probe_records_the_true_platform_speed_and_the_estimates_p
 def test_the_apparent_vertical_stats_see_the_level_push_and_not_the_tilt_and_replay_the_benchmark(
     small_bench, tmp_path
 ):
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(
-        "avs", Path(__file__).parents[2] / "scripts" / "apparent_vertical_stats.py"
-    )
-    avs = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(avs)
+    avs = load_script("scripts/apparent_vertical_stats.py")
     over = np.array([[1, 0], [1, 1], [0, 1], [1, 1], [1, 1]], dtype=bool)  # (T, m)
     assert avs.longest_stretch(over).tolist() == [2, 4]
     probe = avs.probe_motion_stats(0.02)

@@ -6,6 +6,7 @@
     python scripts/study.py next                      # the first unfinished step, trained or evaluated
     python scripts/study.py summary [--paper-columns] # results/study/summary.json from what is evaluated
     python scripts/study.py compare                   # the fast learner against float32 (issue 24, item 4)
+    python scripts/study.py table [--wide]            # the README's (docs/results.md's) table, from summary.json
 
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
 appended to runs/study/<method>/seed<k>.commands before it runs, so a run can be continued in a
@@ -85,6 +86,41 @@ ROWS = {
     "R-S (oracle)": ("rs", BUDGET, "rs_oracle"),
 }
 STAND_STILL = RESULTS / "stand_still" / "seed0"
+# the README's table: label -> the summary rows it shows, side by side ("; " between them)
+TABLE_ROWS = {
+    "Stand Still (a = 0)": ("Stand Still",),
+    "LAS-MP, 450 iterations": ("LAS-MP",),
+    "LAS-MP, 1,000 iterations (the shipped policy)": ("LAS-MP (1,000 it.)",),
+    "LAS-MP, centre reward reading": ("LAS-MP, centre reward",),
+    **{
+        name: (name,)
+        for name in (
+            "w/o alignment command",
+            "w/o platform velocity estimates",
+            "w/o explicit estimator",
+            "w/o explicit estimator, with the history",
+        )
+    },
+    "R-S (its estimates; the true x_exp)": ("R-S", "R-S (oracle)"),
+    "LAS-MP, float32 learner (450; 1,000 it.)": tuple(FLOAT32_ROWS),
+}
+TABLE_COLUMNS = {  # metric -> (header, format)
+    "collision_rate": ("collision rate", ".3f"),
+    "height_violation_rate": ("height-violation rate", ".3f"),
+    "position_deviation_m": ("position dev. (m)", ".3f"),
+    "rotation_deviation_rad": ("rotation dev. (rad)", ".3f"),
+    "power_w": ("power (W)", ".2f"),
+}
+WIDE_COLUMNS = {  # docs/results.md's table: every metric, each summary row on its own
+    "collision_rate": ("collision", ".3f"),
+    "height_violation_rate": ("height viol.", ".3f"),
+    "position_deviation_m": ("position dev. (m, platform)", ".3f"),
+    "rotation_deviation_rad": ("rotation dev. (rad, world tilt)", ".3f"),
+    "power_w": ("power (W)", ".2f"),
+    "position_deviation_translating_m": ("position dev. (m, translating)", ".3f"),
+    "rotation_deviation_platform_rad": ("rotation (rad, rel. to platform)", ".3f"),
+}
+SHORT_LEARNER = {"bfloat16": "bf16", "float32": "fp32"}
 
 
 def run_dir(method: str, seed: int) -> Path:
@@ -284,12 +320,55 @@ def compare() -> str:
     return "\n".join(lines)
 
 
+def _seed_of(result_dir: str) -> str:
+    return result_dir.rstrip("/").rsplit("seed", 1)[-1]
+
+
+def _cell(entry: dict, metric: str, fmt: str) -> str:
+    """Three seeds: the mean ± the 95 % t-interval; fewer: each seed's value ("a / b", seed order:
+    two seeds give no useful interval); Stand Still (no seeds): its one value."""
+    m = entry["metrics"][metric]
+    if len(entry["seeds"]) == len(SEEDS):
+        return f"{m['mean']:{fmt}} ± {m['ci95']:{fmt}}"
+    return " / ".join(f"{v:{fmt}}" for v in m["per_seed"])
+
+
+def table(summary_path: Path | None = None, wide: bool = False) -> str:
+    """A results table (Markdown) from summary.json. The README's (default): its rows (TABLE_ROWS;
+    R-S beside its oracle), the paper's five metrics, the number of seeds. `wide`: docs/results.md's,
+    every summary row on its own, every metric, the seeds by name and each seed's learner. A row not
+    yet evaluated is left out."""
+    methods = json.loads((summary_path or RESULTS / "summary.json").read_text())["methods"]
+    columns = WIDE_COLUMNS if wide else TABLE_COLUMNS
+    heads = [h for h, _ in columns.values()] + (["learner per seed"] if wide else [])
+    lines = ["| method | seeds | " + " | ".join(heads) + " |", "|---" * (len(heads) + 2) + "|"]
+    rows = {n: (n,) for n in methods} if wide else TABLE_ROWS
+    for label, names in rows.items():
+        entries = [methods[n] for n in names if n in methods]
+        if not entries:
+            continue
+        seeds = [
+            ", ".join(map(_seed_of, e["seeds"])) if wide or len(e["seeds"]) < len(SEEDS) else str(len(SEEDS))
+            for e in entries
+        ]
+        seeds = "–" if names == ("Stand Still",) else "; ".join(dict.fromkeys(seeds))  # the same once
+        cells = ["; ".join(_cell(e, metric, fmt) for e in entries) for metric, (_, fmt) in columns.items()]
+        if wide:
+            learners = entries[0].get("learner_per_seed") or []
+            cells.append(", ".join(SHORT_LEARNER.get(x, "–") for x in learners) or "–")
+        lines.append(f"| {label} | {seeds} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
     sub.add_parser("plan")
     sub.add_parser("next")
     sub.add_parser("compare")
+    sub.add_parser("table").add_argument(
+        "--wide", action="store_true", help="docs/results.md's table: every row and metric on its own"
+    )
     sub.add_parser("summary").add_argument(
         "--paper-columns", action="store_true", help="print only the paper's five metrics"
     )
@@ -310,6 +389,8 @@ def main(argv=None) -> None:
         print("the study is complete")
     elif args.cmd == "compare":
         print(compare())
+    elif args.cmd == "table":
+        print(table(wide=args.wide))
     elif args.cmd == "summary":
         from lasmp.eval import results_table
 

@@ -156,6 +156,41 @@ def test_the_summary_lists_each_row_with_its_evaluated_seeds_and_leaves_out_the_
     ]  # fmt: skip
 
 
+def _entry(study, seeds: list[str], collision: list[float], ci95: float | None = None) -> dict:
+    """A summary row whose every metric holds the same values."""
+    metric = {"mean": sum(collision) / len(collision), "ci95": ci95, "per_seed": collision}
+    return {"seeds": seeds, "metrics": dict.fromkeys(study.WIDE_COLUMNS, metric)}
+
+
+def test_the_table_gives_three_seeds_as_mean_and_interval_fewer_per_seed_and_r_s_beside_its_oracle(study):
+    methods = {
+        "Stand Still": _entry(study, ["results/study/stand_still/seed0"], [0.634]),
+        "LAS-MP": _entry(
+            study, [f"results/study/lasmp/seed{k}" for k in range(3)], [0.1, 0.2, 0.3], ci95=0.248
+        ),
+        "R-S": _entry(study, ["results/study/rs/seed0", "results/study/rs/seed2"], [0.16, 0.2]),
+        "R-S (oracle)": _entry(
+            study, ["results/study/rs_oracle/seed0", "results/study/rs_oracle/seed2"], [0.14, 0.5]
+        ),
+    }
+    path = study.RESULTS / "summary.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"methods": methods}))
+    rows = study.table(path).splitlines()
+    assert rows[0].startswith("| method | seeds | collision rate |") and len(rows) == 2 + 3
+    assert rows[2].startswith("| Stand Still (a = 0) | – | 0.634 |")
+    assert rows[3].startswith("| LAS-MP, 450 iterations | 3 | 0.200 ± 0.248 |") and rows[3].endswith(
+        "| 0.20 ± 0.25 |"
+    )  # power to two places
+    assert rows[4].startswith("| R-S (its estimates; the true x_exp) | 0, 2 | 0.160 / 0.200; 0.140 / 0.500 |")
+    wide = study.table(path, wide=True).splitlines()  # every summary row on its own, every metric
+    assert len(wide) == 2 + 4 and wide[0].endswith("| rotation (rad, rel. to platform) | learner per seed |")
+    assert wide[3].startswith("| LAS-MP | 0, 1, 2 | 0.200 ± 0.248 |") and wide[3].endswith(
+        "| 0.200 ± 0.248 | – |"
+    )
+    assert wide[5].startswith("| R-S (oracle) | 0, 2 | 0.140 / 0.500 |")
+
+
 def curves(study, method, seed, level_up_at):
     """A learning curve whose success climbs to 0.9 and whose level leaves 5 at `level_up_at`."""
     windows = [

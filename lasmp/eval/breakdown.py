@@ -1,6 +1,6 @@
 """Where a method fails: the collision rate of an evaluation broken down by episode, from episodes.csv.
 
-    python -m lasmp.eval.breakdown DIR [--plot out.png] [--late-s 8] [--episodes K]
+    python -m lasmp.eval.breakdown DIR [--plot out.png] [--late-s 8] [--episodes K] [--row LABEL]
 
 Reads DIR/episodes.csv (written by evaluate.py) and prints, as Markdown tables, the collision rate
 (with the episode count behind it) by number of waypoints N, by the platform's maximum tilt (bins of
@@ -16,6 +16,9 @@ compares with one of the first K (episode k is the same trajectory and robot in 
 with the probe, e.g. Stand Still's, serves every run made with `--no-platform-probe`): the probe
 replays only the platform and the episode's robot's foot friction, so it is the same for every
 controller; the two files must hold the same episodes on the same robots.
+`--row LABEL` prints instead one row of docs/evaluation.md's table of runs (it needs the probe's
+columns): collisions, those in forced episodes, in the tilt tail (with their share), the rate below
+and in the tail, after --late-s (with their share), and the three commonest causes.
 """
 
 from __future__ import annotations
@@ -170,6 +173,28 @@ def markdown(b: dict) -> str:
     return "\n".join(lines)
 
 
+def summary_row(b: dict, label: str) -> str:
+    """One Markdown row of docs/evaluation.md's table of runs, from a breakdown with the probe's
+    columns: | label | collisions | in the forced | in the tilt tail (share) | rate below / in the
+    tail | late (share) | the three commonest causes (share) |."""
+    if "tilt_tail" not in b:
+        raise ValueError(
+            "the row needs the platform probe's columns: evaluate with the probe or give --probe-from"
+        )
+    n, c = b["episodes"], b["collisions"]
+    tail = b["tilt_tail"]
+    forced = dict((k, hit) for k, _, hit in b["by_forced"])["forced"]
+    below = _share(c - tail["collisions"], n - tail["episodes"])
+    late = b["late"]["collisions"]
+    causes = ", ".join(
+        f"{k.replace('off_footprint', 'off the footprint')} {m / c:.2f}" for k, m in b["by_cause"][:3]
+    )
+    return (
+        f"| {label} | {c} | {forced} | {tail['collisions']} ({tail['collisions'] / c:.2f}) | "
+        f"{below} / {_share(tail['collisions'], tail['episodes'])} | {late} ({late / c:.2f}) | {causes} |"
+    )
+
+
 def plot(t: dict[str, np.ndarray], b: dict, path: Path) -> bool:
     """Four panels: collision rate by N, by max tilt, by friction; failure times. False without matplotlib."""
     try:
@@ -216,6 +241,9 @@ def main(argv=None) -> int:
     p.add_argument(
         "--probe-from", type=Path, metavar="DIR2", help="the probe's columns from DIR2/episodes.csv"
     )
+    p.add_argument(
+        "--row", metavar="LABEL", help="print only docs/evaluation.md's row of this run, named LABEL"
+    )
     args = p.parse_args(argv)
     if args.episodes is not None and args.episodes < 1:
         p.error(f"--episodes must be >= 1, got {args.episodes}")
@@ -229,7 +257,14 @@ def main(argv=None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     b = breakdown(table, args.late_s)
-    print(markdown(b))
+    if args.row is not None:
+        try:
+            print(summary_row(b, args.row))
+        except ValueError as err:
+            print(f"error: {args.dir / 'episodes.csv'}: {err}", file=sys.stderr)
+            return 2
+    else:
+        print(markdown(b))
     if args.plot is not None and not plot(table, b, args.plot):
         print("\n(no plot: matplotlib is not installed)", file=sys.stderr)
     return 0

@@ -176,6 +176,20 @@ def test_breakdown_counts_collisions_by_n_tilt_cause_forced_and_late_failures():
     assert "| 16 | 2 | 2 | 1.000 |" in text and "Failures after 8 s: 2 of 3 (0.667)" in text
 
 
+def test_a_run_s_row_counts_forced_tail_below_late_and_the_commonest_causes(tmp_path, capsys):
+    t = table()
+    t["collision_cause"] = np.array(["", "", "FR_calf", "", "trunk+RL_hip", "FL_calf"], dtype=object)
+    ep.write_csv(tmp_path / "episodes.csv", t)
+    assert bd.main([str(tmp_path), "--row", "seed 0"]) == 0
+    # 3 collisions: 1 forced; 2 of 3 episodes in the tail (>= 0.5 rad) against 1 of 3 below; 2 late
+    row = "| seed 0 | 3 | 1 | 2 (0.67) | 0.333 / 0.667 | 2 (0.67) | calf 0.67, trunk 0.33 |"
+    assert capsys.readouterr().out.strip() == row
+    t["forced"][:] = np.nan  # no probe: no tail, no row
+    ep.write_csv(tmp_path / "episodes.csv", t)
+    assert bd.main([str(tmp_path), "--row", "seed 0"]) == 2
+    assert "needs the platform probe's columns" in capsys.readouterr().err
+
+
 def test_breakdown_without_probe_columns_says_so():
     t = table()
     t["forced"][:] = np.nan

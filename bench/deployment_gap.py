@@ -58,43 +58,56 @@ def derangement(n: int, seed: int = 0) -> np.ndarray:
 BENCHMARK_ENV = {"domain_rand": {"split": "test"}, "curriculum": {"enabled": False}}  # as evaluate.py's
 
 
+class MixedInputs:
+    """Mixed into the checkpoint's actor (lasmp.deploy's `mixin`): its estimates with the parts that
+    `truth` names replaced, read from `true_obs` (the env's privileged groups of this step); "s" feeds
+    env i the estimates of env `other[i]`."""
+
+    truth: str = ""
+    true_obs = None
+    other: torch.Tensor | None = None
+
+    def _estimated_inputs(self, o, history_n):
+        x_hat, l_hat, _ = super()._estimated_inputs(o, history_n)
+        x_true = self.true_obs["priv_explicit"][:, : x_hat.shape[1]]
+        if "x" in self.truth:
+            x_hat = x_true
+        if "c" in self.truth:
+            x_hat = torch.cat([x_true[:, :N_CONTACTS], x_hat[:, N_CONTACTS:]], 1)
+        if "v" in self.truth:
+            x_hat = torch.cat([x_hat[:, :N_CONTACTS], x_true[:, N_CONTACTS:]], 1)
+        if "s" in self.truth:
+            x_hat = x_hat[self.other]
+        if "l" in self.truth:
+            l_hat = self.encoder(self.true_obs["priv_implicit"])
+        u_hat = alignment_from_estimates(x_hat, o[:, GYRO_Z_COL]) if self.use_alignment else None
+        return x_hat, l_hat, u_hat
+
+
+def mixed_policy(checkpoint: str, path: str, duration_s: float | None, n: int, seed: int | None, truth: str):
+    """(env, policy): the checkpoint's policy reading the inputs of mode `truth` (MixedInputs), and
+    its env of n envs; duration_s None: the trajectory file is benchmark episodes, played with the
+    env's own episode length and drive."""
+    overrides = BENCHMARK_ENV if duration_s is None else rm.env_overrides(duration_s, "close")
+    env, pol, _, _ = load_deploy_env(
+        checkpoint, num_envs=n, seed=seed, trajectories=path, env_overrides=overrides, mixin=MixedInputs
+    )
+    pol.truth = truth
+    pol.other = torch.as_tensor(derangement(n)) if "s" in truth else None
+    return env, pol
+
+
 def collision_rate(
     checkpoint: str, path: str, duration_s: float | None, n: int, seed: int | None, truth: str
 ) -> float:
-    """Share of the n envs' first episodes that end in a collision or fall; duration_s None: the
-    trajectory file is benchmark episodes, played with the env's own episode length and drive."""
-    overrides = BENCHMARK_ENV if duration_s is None else rm.env_overrides(duration_s, "close")
-    env, pol, _, _ = load_deploy_env(
-        checkpoint, num_envs=n, seed=seed, trajectories=path, env_overrides=overrides
-    )
-    estimated = pol._estimated_inputs
-    current = {}
-    other = torch.as_tensor(derangement(n)) if "s" in truth else None
-
-    def mixed(o, history_n):
-        x_hat, l_hat, _ = estimated(o, history_n)
-        obs = current["obs"]
-        x_true = obs["priv_explicit"][:, : x_hat.shape[1]]
-        if "x" in truth:
-            x_hat = x_true
-        if "c" in truth:
-            x_hat = torch.cat([x_true[:, :N_CONTACTS], x_hat[:, N_CONTACTS:]], 1)
-        if "v" in truth:
-            x_hat = torch.cat([x_hat[:, :N_CONTACTS], x_true[:, N_CONTACTS:]], 1)
-        if "s" in truth:
-            x_hat = x_hat[other]
-        if "l" in truth:
-            l_hat = pol.encoder(obs["priv_implicit"])
-        u_hat = alignment_from_estimates(x_hat, o[:, GYRO_Z_COL]) if pol.use_alignment else None
-        return x_hat, l_hat, u_hat
-
-    pol._estimated_inputs = mixed
+    """Share of the n envs' first episodes that end in a collision or fall (`mixed_policy`'s)."""
+    env, pol = mixed_policy(checkpoint, path, duration_s, n, seed, truth)
     obs = env.get_observations()
     ended = np.zeros(n, bool)
     collided = np.zeros(n, bool)
     with torch.inference_mode():
         for _ in range(env.max_episode_length):
-            current["obs"] = obs
+            pol.true_obs = obs
             obs, _, done, extras = env.step(pol(obs))
             done = done.numpy()
             collided |= done & ~extras["time_outs"].numpy() & ~ended

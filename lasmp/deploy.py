@@ -42,13 +42,16 @@ def obs_window(obs) -> torch.Tensor:
     return torch.cat([obs["policy"].unsqueeze(1), obs["history"]], dim=1)
 
 
-def build_policy(data: dict, cfg: TrainCfg) -> torch.nn.Module:
+def build_policy(data: dict, cfg: TrainCfg, mixin: type | None = None) -> torch.nn.Module:
     """The actor of checkpoint `data` with its weights, in deployment mode; CheckpointError if the
-    weights do not fit the actor its config describes."""
+    weights do not fit the actor its config describes. `mixin`: a class whose methods override the
+    actor's (a subclass of both is built), for diagnostics that change what the actor reads."""
     rsl = rsl_rl_cfg(cfg)
     layout = data["obs_layout"]
     obs = TensorDict({g: torch.zeros(1, *shape) for g, shape in layout.items()}, batch_size=[1])
     actor_class, actor_cfg = resolve_class(dict(rsl["actor"]))
+    if mixin is not None:
+        actor_class = type(mixin.__name__ + actor_class.__name__, (mixin, actor_class), {})
     groups = resolve_obs_groups(obs, dict(rsl["obs_groups"]), ["actor", "critic"])
     with not_fitting(f"{data['path']} does not fit its own config"):  # a shape mismatch, a missing key
         with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl's models print themselves
@@ -65,16 +68,17 @@ def load_policy(
     num_envs: int = 1,
     trajectories: str | None = None,
     env_overrides: dict | None = None,
+    mixin: type | None = None,
 ) -> Deployed:
     """The deployable policy of `path`, a checkpoint file or a run directory (its latest
     model_<N>.pt), with its config for `num_envs` envs and `seed` (None: the run's own), and a
-    trajectory file, and nested env overrides. CheckpointError for a missing, unreadable, hostile or
-    mismatched checkpoint."""
+    trajectory file, and nested env overrides (`mixin`: `build_policy`'s). CheckpointError for a
+    missing, unreadable, hostile or mismatched checkpoint."""
     data = read_checkpoint(path)
     if seed is None:
         seed = (data.get("config") or {}).get("seed", 0)
     cfg = checkpoint_cfg(data, num_envs, seed, trajectories, env_overrides)
-    return Deployed(build_policy(data, cfg), cfg, data)
+    return Deployed(build_policy(data, cfg, mixin), cfg, data)
 
 
 def load_deploy_env(
@@ -83,13 +87,14 @@ def load_deploy_env(
     seed: int | None = None,
     trajectories: str | None = None,
     env_overrides: dict | None = None,
+    mixin: type | None = None,
 ):
     """(env, policy, cfg, checkpoint): `load_policy` plus an env of the checkpoint's task with
     `num_envs` envs. The env takes the checkpoint's curriculum state (not its envs' running state:
     its size may differ) and is reset, so its first episodes already use the checkpoint's
     curriculum. Its random streams: with `seed` None, the checkpoint's own at the save (its run's
     seed, continued); with a seed, fresh streams from that seed, so that seeds give other episodes."""
-    deployed = load_policy(path, seed, num_envs, trajectories, env_overrides)
+    deployed = load_policy(path, seed, num_envs, trajectories, env_overrides, mixin)
     cfg, data = deployed.cfg, deployed.checkpoint
     torch.manual_seed(cfg.seed)
     env = make_env(cfg.task, cfg.env, cfg.device)

@@ -18,7 +18,6 @@ level-acceleration probe's two motions, from their reference (the close drive tr
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -28,6 +27,7 @@ import numpy as np
 from lasmp.eval import cli
 from lasmp.eval import episodes as ep
 from lasmp.eval.report import atomic_write_text
+from lasmp.motions import level_push
 from lasmp.motions.motion import derivatives
 
 THRESHOLD_RAD = 0.1  # a level acceleration of 0.98 m/s²
@@ -72,13 +72,10 @@ def platform_stats(dt, r_wp, v_plf_w, omega_plf_w, mu, top_m) -> dict[str, np.nd
 
 
 def probe_motion_stats(dt: float) -> dict[str, dict[str, float]]:
-    """The same numbers for scripts/level_acceleration_probe.py's motions, from their reference."""
-    path = Path(__file__).with_name("level_acceleration_probe.py")
-    spec = importlib.util.spec_from_file_location("level_acceleration_probe", path)
-    probe = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(probe)
+    """The same numbers for the level-acceleration probe's motions (lasmp.motions.level_push), from
+    their reference."""
     out = {}
-    for m in probe.motions():
+    for m in level_push.motions():
         _, a = derivatives(m)
         step = max(1, int(round(dt / float(m.t_s[1] - m.t_s[0]))))
         up_w = a[::step, :3] - ep.G_W

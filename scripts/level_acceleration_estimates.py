@@ -2,7 +2,7 @@
 
     python scripts/level_acceleration_estimates.py --checkpoint resources/policies/lasmp_a1.pt --out DIR
 
-Plays scripts/level_acceleration_probe.py's motions (a steady level push, its equivalent tilt, a
+Plays lasmp.motions.level_push's motions (a steady level push, its equivalent tilt, a
 slow ramp to the push's final speed) to the benchmark's first R robots, as the real-motion suite
 does, and records at every step the true and the estimated x_exp (v_body_b, v_plf_b) and the
 alignment command the actor is given (u_aln from the estimates: v_plf_b,xy - v_body_b,xy and the
@@ -18,7 +18,6 @@ estimate errors, |u_aln_hat,xy| and the two tilts, and the fall times; and DIR/e
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -32,24 +31,17 @@ from lasmp.eval.real_motion import suite as rm
 from lasmp.eval.report import atomic_write_text
 from lasmp.eval.run import run_benchmark
 from lasmp.modules.obs_groups import GYRO_Z_COL, alignment_from_estimates
+from lasmp.motions import level_push
 
 WINDOW_S = 0.5
 V_BODY, V_PLF = slice(4, 6), slice(7, 9)  # the xy columns of v_body_b and v_plf_b in x_exp
 GRAVITY_W = np.array([0.0, 0.0, -9.81])
 
 
-def probe_motions():
-    path = Path(__file__).with_name("level_acceleration_probe.py")
-    spec = importlib.util.spec_from_file_location("level_acceleration_probe", path)
-    probe = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(probe)
-    return probe.motions()
-
-
 def record(args) -> tuple[dict, dict[str, np.ndarray], float, list[str]]:
     """Play the motions; (per-episode results, per-step arrays (T, n, ...): the true and estimated x_exp,
     u_aln_hat, the trunk's z axis and the platform's velocity in W; dt, the motions' names)."""
-    motions = probe_motions()
+    motions = level_push.motions()
     bench = cli.load_or_make_benchmark(args.benchmark)
     episodes = rm.make_episodes(motions, bench.robots, args.robots_per_scenario)
     extra = rm.env_overrides(max(m.duration_s for m in motions), rm.DEFAULT_DRIVE)

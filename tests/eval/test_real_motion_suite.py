@@ -234,10 +234,10 @@ def test_motion_rejects_a_motion_that_does_not_start_at_rest_pose():
 def test_the_suite_plays_motions_given_from_code_and_the_level_acceleration_probe_matches_its_tilt(
     tmp_path, small_bench
 ):
+    from lasmp.motions import level_push
     from lasmp.motions.motion import derivatives
 
-    probe = load_script("scripts/level_acceleration_probe.py")
-    level, tilt, slow = probe.motions()
+    level, tilt, slow = level_push.motions()
     v, a = derivatives(level)
     assert np.abs(a[:, 0]).max() == pytest.approx(1.5, rel=0.01) and np.all(level.pose[:, 1:] == 0)
     v_slow, a_slow = derivatives(slow)  # the same final speed at under a third of the acceleration

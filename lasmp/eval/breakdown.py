@@ -113,8 +113,8 @@ def breakdown(t: dict[str, np.ndarray], late_s: float = 8.0) -> dict:
     return out
 
 
-def _share(k: int, n: int) -> str:
-    return f"{k / n:.3f}" if n else "n/a"
+def _share(k: int, n: int, fmt: str = ".3f") -> str:
+    return f"{k / n:{fmt}}" if n else "n/a"
 
 
 def markdown(b: dict) -> str:
@@ -187,11 +187,12 @@ def summary_row(b: dict, label: str) -> str:
     below = _share(c - tail["collisions"], n - tail["episodes"])
     late = b["late"]["collisions"]
     causes = ", ".join(
-        f"{k.replace('off_footprint', 'off the footprint')} {m / c:.2f}" for k, m in b["by_cause"][:3]
+        f"{k.replace('off_footprint', 'off the footprint')} {_share(m, c, '.2f')}"
+        for k, m in b["by_cause"][:3]
     )
     return (
-        f"| {label} | {c} | {forced} | {tail['collisions']} ({tail['collisions'] / c:.2f}) | "
-        f"{below} / {_share(tail['collisions'], tail['episodes'])} | {late} ({late / c:.2f}) | {causes} |"
+        f"| {label} | {c} | {forced} | {tail['collisions']} ({_share(tail['collisions'], c, '.2f')}) | "
+        f"{below} / {_share(tail['collisions'], tail['episodes'])} | {late} ({_share(late, c, '.2f')}) | {causes} |"
     )
 
 

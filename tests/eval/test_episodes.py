@@ -184,6 +184,10 @@ def test_a_run_s_row_counts_forced_tail_below_late_and_the_commonest_causes(tmp_
     # 3 collisions: 1 forced; 2 of 3 episodes in the tail (>= 0.5 rad) against 1 of 3 below; 2 late
     row = "| seed 0 | 3 | 1 | 2 (0.67) | 0.333 / 0.667 | 2 (0.67) | calf 0.67, trunk 0.33 |"
     assert capsys.readouterr().out.strip() == row
+    t["collided"][:] = 0  # no collision: no shares
+    ep.write_csv(tmp_path / "episodes.csv", t)
+    assert bd.main([str(tmp_path), "--row", "seed 0"]) == 0
+    assert capsys.readouterr().out.strip() == "| seed 0 | 0 | 0 | 0 (n/a) | 0.000 / 0.000 | 0 (n/a) |  |"
     t["forced"][:] = np.nan  # no probe: no tail, no row
     ep.write_csv(tmp_path / "episodes.csv", t)
     assert bd.main([str(tmp_path), "--row", "seed 0"]) == 2

@@ -120,7 +120,6 @@ WIDE_COLUMNS = {  # docs/results.md's table: every metric, each summary row on i
     "position_deviation_translating_m": ("position dev. (m, translating)", ".3f"),
     "rotation_deviation_platform_rad": ("rotation (rad, rel. to platform)", ".3f"),
 }
-SHORT_LEARNER = {"bfloat16": "bf16", "float32": "fp32"}
 
 
 def run_dir(method: str, seed: int) -> Path:
@@ -338,6 +337,8 @@ def table(summary_path: Path | None = None, wide: bool = False) -> str:
     R-S beside its oracle), the paper's five metrics, the number of seeds. `wide`: docs/results.md's,
     every summary row on its own, every metric, the seeds by name and each seed's learner. A row not
     yet evaluated is left out."""
+    from lasmp.eval.results_table import SHORT_LEARNER
+
     methods = json.loads((summary_path or RESULTS / "summary.json").read_text())["methods"]
     columns = WIDE_COLUMNS if wide else TABLE_COLUMNS
     heads = [h for h, _ in columns.values()] + (["learner per seed"] if wide else [])

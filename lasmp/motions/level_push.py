@@ -16,11 +16,11 @@ differ (its trunk's world roll and pitch stay level in the first).
 from __future__ import annotations
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
-from lasmp.motions.motion import Motion, time_grid
+from lasmp.motions.motion import GRAVITY_M_S2, Motion, time_grid
 
 ACCELERATION_MPS2 = 1.5
-GRAVITY_MPS2 = 9.81
 DURATION_S = 20.0
 PUSH_S = (1.0, 2.0, 6.0, 7.0)  # ramp up from 1 s to 2 s, in full until 6 s, ramp down to 7 s
 SLOW_S = (1.0, 2.0, 18.0, 19.0)
@@ -32,11 +32,6 @@ def smooth_step(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
     return 0.5 - 0.5 * np.cos(np.pi * u)
 
 
-def integrate(y: np.ndarray, dt: float) -> np.ndarray:
-    """The trapezoidal running integral of samples y from 0."""
-    return np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * dt)])
-
-
 def profile(t: np.ndarray, times: tuple[float, float, float, float]) -> np.ndarray:
     """0 -> 1 over times[0:2], 1 -> 0 over times[2:4], each a half cosine."""
     return smooth_step(t, *times[:2]) - smooth_step(t, *times[2:])
@@ -45,8 +40,8 @@ def profile(t: np.ndarray, times: tuple[float, float, float, float]) -> np.ndarr
 def surge(t: np.ndarray, acceleration_mps2: np.ndarray) -> np.ndarray:
     """The pose rows of a platform moving along x with this acceleration, from rest."""
     pose = np.zeros((len(t), 6))
-    dt = float(t[1] - t[0])
-    pose[:, 0] = integrate(integrate(acceleration_mps2, dt), dt)
+    velocity_mps = cumulative_trapezoid(acceleration_mps2, t, initial=0.0)
+    pose[:, 0] = cumulative_trapezoid(velocity_mps, t, initial=0.0)
     return pose
 
 
@@ -55,7 +50,7 @@ def motions() -> list[Motion]:
     t = time_grid(DURATION_S)
     push = profile(t, PUSH_S)
     tilt = np.zeros((len(t), 6))
-    tilt[:, 4] = np.arctan(ACCELERATION_MPS2 / GRAVITY_MPS2) * push  # pitch
+    tilt[:, 4] = np.arctan(ACCELERATION_MPS2 / GRAVITY_M_S2) * push  # pitch
     final_speed = ACCELERATION_MPS2 * float(np.sum(push) * (t[1] - t[0]))
     slow = profile(t, SLOW_S)
     slow_acceleration = final_speed / float(np.sum(slow) * (t[1] - t[0]))

@@ -60,12 +60,16 @@ BENCHMARK_ENV = {"domain_rand": {"split": "test"}, "curriculum": {"enabled": Fal
 
 class MixedInputs:
     """Mixed into the checkpoint's actor (lasmp.deploy's `mixin`): its estimates with the parts that
-    `truth` names replaced, read from `true_obs` (the env's privileged groups of this step); "s" feeds
-    env i the estimates of env `other[i]`."""
+    `truth` names replaced, read from `true_obs` (the privileged groups of the observations the actor
+    was last called on); "s" feeds env i the estimates of env `other[i]`."""
 
     truth: str = ""
     true_obs = None
     other: torch.Tensor | None = None
+
+    def get_latent(self, obs, *args, **kwargs):
+        self.true_obs = obs  # every call reads its own step's truth; callers need not set it
+        return super().get_latent(obs, *args, **kwargs)
 
     def _estimated_inputs(self, o, history_n):
         x_hat, l_hat, _ = super()._estimated_inputs(o, history_n)
@@ -107,7 +111,6 @@ def collision_rate(
     collided = np.zeros(n, bool)
     with torch.inference_mode():
         for _ in range(env.max_episode_length):
-            pol.true_obs = obs
             obs, _, done, extras = env.step(pol(obs))
             done = done.numpy()
             collided |= done & ~extras["time_outs"].numpy() & ~ended

@@ -17,6 +17,7 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf
 
+from lasmp.algo.symmetry import supports_mirror
 from lasmp.config import ConfigError, build_env_cfg, check_known_keys
 from lasmp.envs import registry
 from lasmp.envs.registry import env_schema
@@ -52,6 +53,20 @@ class PolicyCfg:
     # (ours) the policy's initial action std, 0.5 (rsl_rl's default is 1.0): the curriculum judges the
     # sampled rollouts, and at 1.0 the noise kept it at level 5 (docs/method.md, curriculum)
     init_noise_std: float = 0.5
+
+
+@dataclass
+class SymmetryCfg:
+    """rsl_rl's `symmetry_cfg` (ours, LAS-MP+): learn a left-right symmetric policy with the sagittal
+    mirror (lasmp/algo/symmetry.py). Both off: no symmetry (the paper's recipe)."""
+
+    use_data_augmentation: bool = False  # append each mini-batch's mirror images to it
+    use_mirror_loss: bool = False  # penalize pi(mirror(o)) != mirror(pi(o))
+    mirror_loss_coeff: float = 0.0
+
+    @property
+    def enabled(self) -> bool:
+        return self.use_data_augmentation or self.use_mirror_loss
 
 
 @dataclass
@@ -100,6 +115,7 @@ class AlgoCfg:
     fused_adam: bool | None = None
     use_mixed_precision: bool | None = None
     compile_mlps: bool | None = None
+    symmetry_cfg: SymmetryCfg = field(default_factory=SymmetryCfg)
 
 
 @dataclass
@@ -187,6 +203,13 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
             f"algo.estimate_rollout_every and algo.estimate_rollout_start must be >= 0, got "
             f"{a.estimate_rollout_every}, {a.estimate_rollout_start}"
         )
+    sym = a.symmetry_cfg
+    if sym.mirror_loss_coeff < 0 or (sym.use_mirror_loss and sym.mirror_loss_coeff == 0):
+        raise ConfigError(
+            f"algo.symmetry_cfg.mirror_loss_coeff must be >= 0, and > 0 with use_mirror_loss; got {sym.mirror_loss_coeff}"
+        )
+    if sym.enabled and not supports_mirror(registry.env_class(cfg.task)):
+        raise ConfigError(f"algo.symmetry_cfg: task={cfg.task} has no mirror maps (moving_platform has)")
     if a.precision not in PRECISIONS:
         raise ConfigError(f"algo.precision must be one of {' | '.join(PRECISIONS)}, got {a.precision!r}")
     if r.num_steps_per_env < 1 or r.max_iterations < 0 or r.save_interval < 1:

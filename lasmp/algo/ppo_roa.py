@@ -43,6 +43,7 @@ from rsl_rl.utils.utils import reduce_gradients_in_buckets
 
 from lasmp.algo.checkpoint import check_finite
 from lasmp.algo.precision import resolve_precision
+from lasmp.algo.symmetry import mirror_augment, supports_mirror
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
 
 
@@ -62,12 +63,16 @@ class PPOROA(PPO):
         use_mixed_precision: bool | None = None,
         fused_adam: bool | None = None,
         compile_mlps: bool | None = None,
+        symmetry_cfg: dict | None = None,
         **kwargs,
     ) -> None:
         device = kwargs.get("device", "cpu")
+        symmetry_cfg = self._symmetry_cfg(symmetry_cfg)
         plan = resolve_precision(precision, device, use_mixed_precision, fused_adam, compile_mlps)
         self.learner_precision = plan
-        super().__init__(actor, critic, storage, use_mixed_precision=plan.bf16_autocast, **kwargs)
+        super().__init__(
+            actor, critic, storage, use_mixed_precision=plan.bf16_autocast, symmetry_cfg=symmetry_cfg, **kwargs
+        )
         self._fused = plan.fused_adam
         if plan.fused_adam:  # the same Adam in one fused kernel; on a CPU PyTorch otherwise loops per tensor
             self.optimizer = torch.optim.Adam(
@@ -104,6 +109,30 @@ class PPOROA(PPO):
         self._rollout_estimates: torch.Tensor | None = None
         self._estimate_steps = 0
         self.iteration = 0
+
+    def _symmetry_cfg(self, cfg: dict | None) -> dict | None:
+        """rsl_rl's symmetry config from ours (`algo.symmetry_cfg`, with the env rsl_rl put in it): None
+        when neither augmentation nor mirror loss is on, else with our augmentation function."""
+        cfg = dict(cfg or {})
+        env = cfg.pop("env", None)
+        if not (cfg.get("use_data_augmentation") or cfg.get("use_mirror_loss")):
+            return None
+        if not supports_mirror(env):
+            raise ValueError(f"algorithm.symmetry_cfg needs an env with mirror maps, got {type(env).__name__}")
+        return {**cfg, "env": env, "data_augmentation_func": self._mirror_batch}
+
+    def _mirror_batch(self, env, obs=None, actions=None):
+        """`mirror_augment`, and for an iteration on the estimates the estimates of the mirrored
+        samples: those of the estimators on the mirrored history (a latent has no mirror map)."""
+        estimates = None
+        if obs is not None and GROUP_DETACHED_ESTIMATES in obs.keys():
+            estimates = obs[GROUP_DETACHED_ESTIMATES]
+            obs = obs.exclude(GROUP_DETACHED_ESTIMATES)
+        obs, actions = mirror_augment(env, obs, actions)
+        if estimates is not None:
+            mirrored = self._raw_actor.detached_estimates(obs[len(estimates) :])
+            obs[GROUP_DETACHED_ESTIMATES] = torch.cat([estimates, mirrored.to(estimates.dtype)])
+        return obs, actions
 
     def acts_on_estimates(self, iteration: int) -> bool:
         """Whether iteration `iteration` (its rollout and PPO update) acts on the estimates: from
@@ -221,7 +250,12 @@ class PPOROA(PPO):
         """Observation groups PPO's update does not read: the history, unless the actor takes it
         as an input (on the estimates it acts on `GROUP_DETACHED_ESTIMATES` instead)."""
         critic_groups = set(self.critic.obs_groups)
-        if self.actor.reads_history(estimates_cached=on_estimates) or GROUP_HISTORY in critic_groups:
+        mirrors_estimates = on_estimates and self.symmetry is not None  # from the mirrored history
+        if (
+            mirrors_estimates
+            or self.actor.reads_history(estimates_cached=on_estimates)
+            or GROUP_HISTORY in critic_groups
+        ):
             return []
         return [GROUP_HISTORY]
 

@@ -62,6 +62,13 @@ TRUNK_COM_M: np.ndarray = np.array([0.0127, 0.002, 0.0006])  # trunk CoM in the 
 TRUNK_COM_M.flags.writeable = False
 
 FOOT_RADIUS_M = 0.02
+
+# The sagittal mirror (left <-> right): each leg's mirror image, in LEG_NAMES order, and per joint in
+# JOINT_NAMES order the joint whose mirror it is and the sign its angle takes (hip abduction flips;
+# thigh and calf turn about the y axis, which the mirror keeps). q_nominal is mirror-symmetric.
+MIRROR_LEGS: tuple[int, ...] = (1, 0, 3, 2)  # FR <-> FL, RR <-> RL
+MIRROR_JOINTS: tuple[int, ...] = tuple(3 * MIRROR_LEGS[j // 3] + j % 3 for j in range(12))
+MIRROR_JOINT_SIGNS: tuple[float, ...] = (-1.0, 1.0, 1.0) * 4
 NON_FOOT_COLLISION_GEOMS: tuple[str, ...] = ("trunk",) + tuple(
     f"{leg}_{part}" for leg in LEG_NAMES for part in ("hip", "thigh", "calf")
 )

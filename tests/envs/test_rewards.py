@@ -7,6 +7,7 @@ import math
 import pytest
 import torch
 
+from lasmp.config import ConfigError
 from lasmp.envs.moving_platform import rewards as R
 from lasmp.envs.moving_platform.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_TERMS, RewardsCfg
 from lasmp.envs.moving_platform.state import StepState
@@ -42,6 +43,8 @@ def make_state(n: int = N, dt_s: float = 0.02, **overrides) -> StepState:
         liftoff=torch.zeros(n, 4, dtype=torch.bool),
         t_air_s=z(4),
         t_contact_s=z(4),
+        t_air_running_s=z(4),
+        at_time_limit=torch.zeros(n, dtype=torch.bool),
         v_slip_p=z(4, 2),
         collision=torch.zeros(n, dtype=torch.bool),
     )
@@ -181,6 +184,50 @@ def test_reg4_air_time_only_at_touchdown_and_clipped():
     t_air[2, :] = 1.0  # no touchdown -> 0
     td[2, 2], t_air[2, 2] = True, 0.15  # 0.05
     close(term("reg4_air_time", make_state(touchdown=td, t_air_s=t_air)), [0.2, 0.0, 0.05])
+
+
+def _swing_charges(charge: str, lands_at_step: int | None, steps: int = 50, dt: float = 0.02) -> float:
+    """reg4's total over one foot's swing from lift-off: it lands at step `lands_at_step` (None: it is
+    still up when the episode's time limit comes, at the last step)."""
+    cfg = RewardsCfg(h_des_from="centre", air_time_charge=charge)
+    t_air = torch.zeros(1, 4)
+    total = 0.0
+    for k in range(steps):
+        landing = lands_at_step == k
+        ended = t_air.clone()
+        t_air = torch.zeros(1, 4) if landing else t_air + torch.tensor([[dt, 0.0, 0.0, 0.0]])
+        td = torch.zeros(1, 4, dtype=torch.bool)
+        td[0, 0] = landing
+        s = make_state(
+            n=1,
+            dt_s=dt,
+            touchdown=td,
+            t_air_s=torch.where(td, ended, 0.0),
+            t_air_running_s=t_air,
+            at_time_limit=torch.tensor([k == steps - 1]),
+        )
+        total += float(R.reg4_air_time(s, cfg))
+        if landing:
+            break
+    return total
+
+
+@pytest.mark.parametrize("charge", ["touchdown", "accrue", "timeout"])
+def test_reg4_charges_a_finished_swing_its_excess_air_time_in_every_mode(charge):
+    # up for 20 steps of 0.02 s = 0.4 s, then it lands: 0.3 s beyond t_swing_des = 0.1 s
+    assert _swing_charges(charge, lands_at_step=20) == pytest.approx(0.3, abs=1e-5)
+
+
+def test_reg4_a_foot_held_up_to_the_time_limit_is_free_only_under_the_papers_touchdown_charge():
+    # up for all 50 steps (1.0 s): 0.9 s beyond t_swing_des, never landing
+    assert _swing_charges("touchdown", lands_at_step=None) == 0.0
+    assert _swing_charges("accrue", lands_at_step=None) == pytest.approx(0.9, abs=1e-5)
+    assert _swing_charges("timeout", lands_at_step=None) == pytest.approx(0.9, abs=1e-5)
+
+
+def test_an_unknown_air_time_charge_is_refused_by_name():
+    with pytest.raises(ConfigError, match="air_time_charge"):
+        RewardsCfg(air_time_charge="sometimes").validate("env.rewards")
 
 
 def test_reg5_contact_time_only_at_liftoff_and_clipped():

@@ -23,6 +23,7 @@ from lasmp.envs.base_env import BaseEnv, column_runs
 from lasmp.envs.curriculum import SharedCurriculum, WaypointCurriculum
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.domain_rand import IntrinsicsWriter
+from lasmp.envs.moving_platform.mirror import ACTIONS, ObservationMirror, nominal_com_y_m
 from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read
 from lasmp.envs.moving_platform.rewards import REWARD_TERMS
 from lasmp.envs.moving_platform.scene import (
@@ -146,6 +147,17 @@ class MovingPlatformEnv(BaseEnv):
         self.episode_source = None
         self.on_step = None
         self.last_state: StepState | None = None
+        self.nominal_com_y_m = nominal_com_y_m(model)
+        self._obs_mirror = ObservationMirror(self.nominal_com_y_m)
+
+    # -- the sagittal mirror (rsl_rl's symmetry augmentation: lasmp/algo/symmetry.py) ---------------
+    def mirror_observations(self, obs: TensorDict) -> TensorDict:
+        """The observation groups of the mirror-image states (lasmp/envs/moving_platform/mirror.py)."""
+        return self._obs_mirror(obs)
+
+    def mirror_actions(self, actions: torch.Tensor) -> torch.Tensor:
+        """The actions that mirror `actions` (n, 12)."""
+        return ACTIONS(actions)
 
     # -- control -------------------------------------------------------------------------------
 
@@ -213,6 +225,8 @@ class MovingPlatformEnv(BaseEnv):
             liftoff=gait.liftoff,
             t_air_s=gait.t_air_s.to(f32),
             t_contact_s=gait.t_contact_s.to(f32),
+            t_air_running_s=self.t_air_s.to(f32, copy=True),
+            at_time_limit=(self.episode_length_buf >= self.max_episode_length) & ~collision,
             collision=collision,
         )
         self.last_state = state
@@ -222,6 +236,9 @@ class MovingPlatformEnv(BaseEnv):
         log = {
             "Termination/body_contact": float(r.body_collision.sum()),
             "Termination/fell": float(fell.sum()),
+            # the stance: the share of envs with all four feet down, and the longest open swing (s)
+            "Gait/four_feet_share": float(contact.all(dim=1).to(f32).mean()),
+            "Gait/longest_open_swing_s": float(self.t_air_s.max()),
         }
         if self.on_step is not None:
             self.on_step(r, collision)

@@ -22,6 +22,10 @@ coefficients k0..k18 map as:
 Our choices (SPEC §10 leaves them open):
 - reg0/reg1 norms are squared, as in legged_gym.
 - reg4/reg5 are clipped at 0: no term ever pays a bonus for tapping or for lingering.
+- reg4's charge (`RewardsCfg.air_time_charge`): the paper charges a swing at touchdown, so a foot held
+  up until the episode ends costs nothing (the three-foot stance, docs/method.md). "accrue" (ours)
+  charges the same total, the air time beyond t_swing_des, step by step as it accrues; "timeout"
+  (ours) keeps the touchdown charge and also charges a swing still open at the time limit.
 - Every weighted term is multiplied by dt_s (legged_gym convention), in `RewardManager`.
 """
 
@@ -110,9 +114,21 @@ def reg3_contact_force(s: StepState, c: RewardsCfg) -> torch.Tensor:
 
 @reward_term
 def reg4_air_time(s: StepState, c: RewardsCfg) -> torch.Tensor:
-    """Σ_i touchdown_i · max(t_air_i - t_swing_des, 0), s."""
+    """The air time beyond t_swing_des charged this step, s, summed over the feet:
+    - "touchdown" (the paper): Σ_i touchdown_i · max(t_air_i - t_swing_des, 0);
+    - "accrue": Σ_i the part of this step's air time beyond t_swing_des (a swing's steps add up to the
+      touchdown charge; one held up to the end pays for every step of it);
+    - "timeout": the touchdown charge, plus at the time limit the excess of every swing still open."""
+    if c.air_time_charge == "accrue":
+        # the running air time passed t_swing_des by at most one step's worth this step
+        this_step = torch.clamp(s.t_air_running_s - c.t_swing_des_s, min=0.0, max=s.dt_s)
+        return torch.sum(this_step, dim=-1)
     excess = torch.clamp(s.t_air_s - c.t_swing_des_s, min=0.0)
-    return torch.sum(s.touchdown.to(excess.dtype) * excess, dim=-1)
+    charged = torch.sum(s.touchdown.to(excess.dtype) * excess, dim=-1)
+    if c.air_time_charge == "timeout":
+        open_excess = torch.clamp(s.t_air_running_s - c.t_swing_des_s, min=0.0).sum(dim=-1)
+        charged = charged + s.at_time_limit.to(excess.dtype) * open_excess
+    return charged
 
 
 @reward_term
@@ -149,6 +165,9 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
 }
 
 
+AIR_TIME_CHARGES = ("touchdown", "accrue", "timeout")
+
+
 @dataclass
 class RewardsCfg:
     """`env.rewards`: a weight per term (0 skips it) and the terms' shape parameters."""
@@ -166,13 +185,20 @@ class RewardsCfg:
     f_tol_n: float = 50.0  # contact-force tolerance per foot, N
     t_swing_des_s: float = 0.1  # desired minimal air time, s
     t_contact_des_s: float = 0.5  # desired minimal contact time, s
+    # when reg4 charges a swing: "touchdown" (the paper's literal reg4), "accrue" or "timeout" (ours,
+    # closing the loophole of a foot held up to the episode's end; the module docstring)
+    air_time_charge: str = "touchdown"
 
     def validate(self, p: str):
         shared.check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
         if self.h_des_from not in ("top", "centre"):
             raise ConfigError(f"{p}.h_des_from must be 'top' or 'centre', got {self.h_des_from!r}")
+        if self.air_time_charge not in AIR_TIME_CHARGES:
+            raise ConfigError(
+                f"{p}.air_time_charge must be one of {list(AIR_TIME_CHARGES)}, got {self.air_time_charge!r}"
+            )
         for f in dataclasses.fields(self):
-            if f.name not in ("weights", "h_des_from"):
+            if f.name not in ("weights", "h_des_from", "air_time_charge"):
                 check_positive(f"{p}.{f.name}", getattr(self, f.name))
 
     def h_des_p_m(self, plf_top_m: float) -> float:

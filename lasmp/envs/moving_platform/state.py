@@ -35,5 +35,7 @@ class StepState:
     liftoff: torch.Tensor  # (n, 4) bool, foot i left contact this step (was in contact)
     t_air_s: torch.Tensor  # (n, 4) length of the air phase that ended at touchdown, s
     t_contact_s: torch.Tensor  # (n, 4) length of the contact phase that ended at lift-off, s
+    t_air_running_s: torch.Tensor  # (n, 4) how long foot i has been in the air so far (0 in contact), s
+    at_time_limit: torch.Tensor  # (n,) bool, this step is the episode's last by its length (time-out)
     v_slip_p: torch.Tensor  # (n, 4, 2) foot velocity relative to the platform surface under it, xy in p, m/s
     collision: torch.Tensor  # (n,) bool, trunk/hip/thigh/calf contact, or fell off the platform

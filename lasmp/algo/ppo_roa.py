@@ -71,7 +71,12 @@ class PPOROA(PPO):
         plan = resolve_precision(precision, device, use_mixed_precision, fused_adam, compile_mlps)
         self.learner_precision = plan
         super().__init__(
-            actor, critic, storage, use_mixed_precision=plan.bf16_autocast, symmetry_cfg=symmetry_cfg, **kwargs
+            actor,
+            critic,
+            storage,
+            use_mixed_precision=plan.bf16_autocast,
+            symmetry_cfg=symmetry_cfg,
+            **kwargs,
         )
         self._fused = plan.fused_adam
         if plan.fused_adam:  # the same Adam in one fused kernel; on a CPU PyTorch otherwise loops per tensor
@@ -118,7 +123,9 @@ class PPOROA(PPO):
         if not (cfg.get("use_data_augmentation") or cfg.get("use_mirror_loss")):
             return None
         if not supports_mirror(env):
-            raise ValueError(f"algorithm.symmetry_cfg needs an env with mirror maps, got {type(env).__name__}")
+            raise ValueError(
+                f"algorithm.symmetry_cfg needs an env with mirror maps, got {type(env).__name__}"
+            )
         return {**cfg, "env": env, "data_augmentation_func": self._mirror_batch}
 
     def _mirror_batch(self, env, obs=None, actions=None):

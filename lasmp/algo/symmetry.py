@@ -15,7 +15,9 @@ import torch
 
 def supports_mirror(env_or_class) -> bool:
     """Whether an env (or env class) has the mirror maps the augmentation needs."""
-    return all(callable(getattr(env_or_class, name, None)) for name in ("mirror_observations", "mirror_actions"))
+    return all(
+        callable(getattr(env_or_class, name, None)) for name in ("mirror_observations", "mirror_actions")
+    )
 
 
 def mirror_augment(env, obs=None, actions=None):

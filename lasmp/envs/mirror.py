@@ -49,7 +49,9 @@ class Mirror:
         return out
 
 
-def block(perm: Sequence[int] = (), sign: Sequence[float] = (), offset: Sequence[float] | None = None) -> Mirror:
+def block(
+    perm: Sequence[int] = (), sign: Sequence[float] = (), offset: Sequence[float] | None = None
+) -> Mirror:
     return Mirror(tuple(perm), tuple(float(s) for s in sign), tuple(offset or (0.0,) * len(perm)))
 
 

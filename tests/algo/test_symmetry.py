@@ -74,8 +74,11 @@ def test_the_mirror_loss_is_a_finite_term_of_the_update_and_no_symmetry_leaves_r
         ({"algo": {"symmetry_cfg": {"use_mirror_loss": True}}}, "mirror_loss_coeff"),
         ({"algo": {"symmetry_cfg": {"mirror_loss_coeff": -1.0}}}, "mirror_loss_coeff"),
         (
-            {"task": "rough_static", "policy": {"command_input": True, "use_alignment": False},
-             "algo": {"symmetry_cfg": {"use_data_augmentation": True}}},
+            {
+                "task": "rough_static",
+                "policy": {"command_input": True, "use_alignment": False},
+                "algo": {"symmetry_cfg": {"use_data_augmentation": True}},
+            },
             "no mirror maps",
         ),
     ],

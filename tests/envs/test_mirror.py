@@ -130,4 +130,6 @@ def test_physics_a_state_and_its_mirror_image_stay_mirror_images_under_mirrored_
     assert not bad, f"critic columns {bad} are not mirror images: errors {err[bad]}, scale {scale[bad]}"
     # a wrong sign in column c would give errors of 2 |x_c|; a wrong swap, |x_c - x_c'|
     flipped = (expected + got).abs().amax(dim=(0, 1))
-    assert torch.all(flipped > tol), f"columns {torch.nonzero(flipped <= tol).flatten().tolist()} cannot catch a sign"
+    assert torch.all(flipped > tol), (
+        f"columns {torch.nonzero(flipped <= tol).flatten().tolist()} cannot catch a sign"
+    )

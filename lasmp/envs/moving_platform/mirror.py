@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import torch
 from tensordict import TensorDict
 
 from lasmp.envs import mirror as m
@@ -21,7 +20,9 @@ from lasmp.envs.robot import Intrinsics
 from lasmp.robots import a1
 
 # o: [accelerometer_b, gyro_b, roll & pitch, q - q_nominal, q_dot, a_{t-1}] (lasmp/envs/robot.py)
-PROPRIOCEPTION = m.concat(m.VECTOR, m.PSEUDO_VECTOR, m.ROLL_PITCH, m.JOINT_ANGLES, m.JOINT_ANGLES, m.JOINT_ANGLES)
+PROPRIOCEPTION = m.concat(
+    m.VECTOR, m.PSEUDO_VECTOR, m.ROLL_PITCH, m.JOINT_ANGLES, m.JOINT_ANGLES, m.JOINT_ANGLES
+)
 # x_exp: [contacts (4), v_body_b, v_plf_b, omega_plf_b]
 EXPLICIT = m.concat(m.LEGS, m.VECTOR, m.VECTOR, m.PSEUDO_VECTOR)
 ALIGNMENT = m.PLANAR_TWIST
@@ -78,7 +79,9 @@ def mirror_intrinsics(p: Intrinsics, nominal_com_y_m: float) -> Intrinsics:
     com = p.com_shift_m.copy()
     com[:, 1] = -com[:, 1] - 2.0 * nominal_com_y_m
     joints = list(a1.MIRROR_JOINTS)
-    return dataclasses.replace(p, com_shift_m=com, joint_kp=p.joint_kp[:, joints], joint_kd=p.joint_kd[:, joints])
+    return dataclasses.replace(
+        p, com_shift_m=com, joint_kp=p.joint_kp[:, joints], joint_kd=p.joint_kd[:, joints]
+    )
 
 
 def mirror_pose_uniforms(u: np.ndarray, init) -> np.ndarray:

@@ -233,7 +233,8 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     try:
-        trajectories, overrides = args.trajectories, None
+        # episodes as evaluation plays them: a training run's hold past T is training's alone
+        trajectories, overrides = args.trajectories, {"trajectory": {"hold_s": 0.0}}
         if args.scenario:
             trajectories, overrides = scenario_file(args.scenario)
         try:

@@ -40,7 +40,9 @@ from lasmp.deploy import load_policy
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
 from lasmp.eval import episodes as ep
+from lasmp.eval.gait import summarize_gait
 from lasmp.eval.metrics import ALL_METRICS, metric_h_des_p_m, summarize
+from lasmp.eval.mirror import MirroredBenchmark, mirror_report
 from lasmp.eval.report import plot_estimates, write_results
 from lasmp.eval.run import run_benchmark
 
@@ -55,7 +57,7 @@ def eval_env_overrides(num_envs: int, seed: int, extra: dict | None = None) -> d
         "num_envs": num_envs,
         "seed": seed,
         "curriculum": {"enabled": False},
-        "trajectory": {"split": "test"},
+        "trajectory": {"split": "test", "hold_s": 0.0},  # a training run's hold never reaches Xi_eval
         "domain_rand": {"split": "test"},
     }
     return deep_merge(base, extra or {})
@@ -183,6 +185,13 @@ def main(argv=None, motions=None) -> int:
         "--plot-estimates", action="store_true", help="estimated vs true x_exp over episode 0 (PNG)"
     )
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--mirror",
+        type=int,
+        default=None,
+        metavar="K",
+        help="also play the mirror twins of the first K episodes and compare the failures (lasmp/eval/mirror.py)",
+    )
     p.add_argument("--suite", choices=["real_motion"], help="play a scenario suite instead of the benchmark")
     p.add_argument("--scenarios", nargs="+", help="with --suite: only these scenarios (default: all)")
     p.add_argument(
@@ -236,6 +245,10 @@ def main(argv=None, motions=None) -> int:
         args.num_trajectories = total if args.num_trajectories is None else args.num_trajectories
         if not 1 <= args.num_trajectories <= total:
             p.error(f"--num-trajectories must be in [1, {total}], got {args.num_trajectories}")
+        if args.mirror is not None and not 1 <= args.mirror <= args.num_trajectories:
+            p.error(
+                f"--mirror must be in [1, {args.num_trajectories}] (the episodes played), got {args.mirror}"
+            )
         # the output before the policy and the physics: a refusal costs seconds, not an evaluation
         out_dir = prepare_out_dir(args.out or default_out_dir(args), args.force)
         env, controller, policy, method = build(args)
@@ -246,6 +259,12 @@ def main(argv=None, motions=None) -> int:
         env, controller, bench, args.num_trajectories, policy=policy, trace=args.plot_estimates
     )
     episodes = run["episodes"]
+    mirror = None
+    if args.mirror is not None:
+        twins = MirroredBenchmark(bench, env.nominal_com_y_m, env.cfg.init_state)
+        mirrored = run_benchmark(env, controller, twins, args.mirror)["episodes"]
+        ep.write_csv(out_dir / "episodes_mirror.csv", ep.episode_table(twins, mirrored, None))
+        mirror = mirror_report(episodes, mirrored)
     probe = None
     if not args.no_platform_probe:
         probe = ep.probe_platform(env.cfg, bench, args.num_trajectories, env.num_envs)
@@ -256,6 +275,7 @@ def main(argv=None, motions=None) -> int:
         "num_episodes": args.num_trajectories,
         "std_over": f"{min(NUM_BATCHES, args.num_trajectories)} consecutive equal batches of episodes",
         "metrics": summarize(episodes, NUM_BATCHES, ALL_METRICS),
+        "gait": summarize_gait(episodes),
         "h_des_p_m": metric_h_des_p_m(env.plf_top_m),
         "mean_episode_steps": float(episodes["steps"].mean()),
         "forced_episodes": None if probe is None else int(ep.count_forced(probe)),
@@ -263,6 +283,8 @@ def main(argv=None, motions=None) -> int:
     }
     if "estimator" in run:
         result["estimator"] = run["estimator"]
+    if mirror is not None:
+        result["mirror"] = mirror
     write_results(out_dir, result)
     if args.plot_estimates and run.get("trace") is not None and len(policy.estimation_names):
         plot_estimates(run["trace"], policy.estimation_names, env.dt_s, out_dir / "estimates.png")

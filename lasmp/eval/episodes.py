@@ -40,6 +40,7 @@ import torch
 
 from lasmp.atomic import atomic_open
 from lasmp.envs.moving_platform.scene import PLATFORM_JOINTS
+from lasmp.eval.gait import GAIT_KEYS
 from lasmp.eval.metrics import EXTRA_METRICS, METRICS
 from lasmp.eval.run import BenchmarkSource
 
@@ -78,6 +79,9 @@ COLUMNS = (
     *PROBE_COLUMNS,
 )
 TEXT_COLUMNS = ("collision_cause",)
+# written since the stance was measured (lasmp/eval/gait.py); read where present, NaN in older files
+OPTIONAL_COLUMNS = GAIT_KEYS
+WRITTEN_COLUMNS = (*COLUMNS, *OPTIONAL_COLUMNS)
 
 
 class EpisodesFileError(ValueError):
@@ -293,6 +297,7 @@ def episode_table(
         "collision_cause": episodes["collision_cause"],
         "steps": episodes["steps"],
         **{m: episodes[m] for m in PER_EPISODE_METRICS},
+        **{g: episodes.get(g, np.full(k, np.nan)) for g in GAIT_KEYS},
     }
     for key in PROBE_COLUMNS:
         t[key] = np.full(k, np.nan) if probe is None else probe[key]
@@ -308,8 +313,8 @@ def _cell(value) -> str:
     return str(int(value)) if value.is_integer() and abs(value) < 2**53 else repr(value)
 
 
-def write_csv(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...] = COLUMNS) -> None:
-    """`table`'s `columns` (default: Xi_eval's COLUMNS) as CSV at `path`, atomically."""
+def write_csv(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...] = WRITTEN_COLUMNS) -> None:
+    """`table`'s `columns` (default: Xi_eval's) as CSV at `path`, atomically."""
     text = io.StringIO()
     w = csv.writer(text, lineterminator="\n")
     w.writerow(columns)
@@ -337,7 +342,7 @@ def read_csv(path) -> dict[str, np.ndarray]:
         raise EpisodesFileError(f"{path}: not an episodes file, columns missing: {', '.join(missing)}")
     if not body:
         raise EpisodesFileError(f"{path}: no episode rows")
-    col = {c: header.index(c) for c in COLUMNS}
+    col = {c: header.index(c) for c in WRITTEN_COLUMNS if c in header}
     out = {}
     for c, j in col.items():
         try:
@@ -357,6 +362,8 @@ def read_csv(path) -> dict[str, np.ndarray]:
             raise EpisodesFileError(
                 f"{path}: row {bad + 2}, column {c!r}: not a number: {cells[bad]!r}"
             ) from None
+    for c in OPTIONAL_COLUMNS:
+        out.setdefault(c, np.full(len(body), np.nan))
     return out
 
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from lasmp.atomic import atomic_open, atomic_write_with
 from lasmp.eval.metrics import ALL_METRICS
+from lasmp.eval.mirror import mirror_markdown
 
 LABELS = {
     "collision_rate": "collision rate",
@@ -72,6 +73,16 @@ def markdown(result: dict) -> str:
             f"Forced episodes (the platform probe's Coulomb block slides off or loses contact): "
             f"{result['forced_episodes']} of {result['num_episodes']}.",
         ]
+    gait = result.get("gait")
+    if gait:
+        lines += [
+            "",
+            f"Stance: {gait['four_feet_step_share']:.3f} of the steps on four feet; "
+            f"{gait['episodes_with_foot_up_over_2s']:.3f} of the episodes with a foot up for more than 2 s "
+            f"(median longest air phase {gait['median_longest_air_s']:.2f} s).",
+        ]
+    if result.get("mirror"):
+        lines += mirror_markdown(result["mirror"])
     est = result.get("estimator")
     if est:
         lines += [

@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from lasmp.envs.robot import Intrinsics, as_numpy, take_columns
+from lasmp.eval.gait import GAIT_KEYS, GaitTracker
 from lasmp.eval.metrics import EpisodeMetrics, TrunkPose, metric_h_des_p_m
 from lasmp.robots import a1
 
@@ -71,6 +72,7 @@ EPISODE_KEYS = (
     "rotation_deviation_platform_rad",
     "power_w",
     "collision_time_s",
+    *GAIT_KEYS,
 )
 
 
@@ -129,12 +131,14 @@ def run_benchmark(
             q_dot=r.q_dot,
             collision=collision.cpu().numpy(),
             contact=contact,
+            feet=r.foot_contact,
             fell=fall_kinds(env, r.p_body_p),
         )
 
     env.on_step = capture
     obs, _ = env.reset()
     metrics.start(np.arange(env.num_envs), TrunkPose.from_readout(as_numpy(env.readout)))
+    gait = GaitTracker(env.num_envs, env.dt_s)
     episodes = {key: np.full(num_episodes, np.nan) for key in EPISODE_KEYS}
     episodes["collision_cause"] = np.full(num_episodes, "", dtype=object)
     est = {"abs_sum": None, "l2_sum": 0.0, "count": 0}
@@ -152,12 +156,13 @@ def run_benchmark(
                     first_wave.append((ep_before, x_true.numpy().copy(), x_hat.numpy().copy()))
             obs, _, done, extras = env.step(controller(obs))
             metrics.step(active, captured["collision"], captured["pose"], captured["tau"], captured["q_dot"])
+            gait.step(active, captured["feet"])
             done = done.cpu().numpy()
             ids = np.flatnonzero(done & active)
             if len(ids):
                 collided = ~extras["time_outs"].cpu().numpy()[ids]
                 rows = ep_before[ids]
-                closed = metrics.close(ids, collided)
+                closed = {**metrics.close(ids, collided), **gait.close(ids)}
                 for key, value in closed.items():
                     episodes[key][rows] = value
                 # the collision step is the first one not counted: it ends at (steps + 1) dt
@@ -170,6 +175,7 @@ def run_benchmark(
             restarted = np.flatnonzero(done)
             if len(restarted):
                 metrics.start(restarted, TrunkPose.from_readout(as_numpy(env.readout)).rows(restarted))
+                gait.start(restarted)
             now = time.perf_counter()
             if progress and (now - last_print > 2.0 or done_count == num_episodes):
                 last_print = now

@@ -59,11 +59,17 @@ class TrajectoryCfg:
     kind: str = "approximating"
     degree: int = 10  # approximating B-spline degree: calibrated to the paper's 7.12 m / 0.69 m/s (ours)
     file: str | None = None  # a trajectory file (lasmp-trajectories .npz): episodes replay its rows in order
+    # (ours, LAS-MP+, training only) an episode runs this long past T while the reference holds its last
+    # pose: the platform, steepest at T in most references, settles there, and a fall the time-out would
+    # cut off counts. Evaluation and play set it to 0 (Xi_eval's episodes stay T long)
+    hold_s: float = 0.0
 
     def validate(self, p: str):
         if self.split not in ("train", "test"):
             raise ConfigError(f"{p}.split must be 'train' or 'test', got {self.split!r}")
         check_positive(f"{p}.duration_s", self.duration_s)
+        if not self.hold_s >= 0:
+            raise ConfigError(f"{p}.hold_s must be >= 0, got {self.hold_s}")
         try:
             trj.SplineSpec(self.kind, self.degree)
         except ValueError as err:

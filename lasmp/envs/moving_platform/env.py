@@ -72,7 +72,8 @@ class MovingPlatformEnv(BaseEnv):
         self.check_cfg(cfg)
         model = build_model(cfg.platform, cfg.sim)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
-        super().__init__(cfg, model, 12, int(round(cfg.trajectory.duration_s / dt_s)), device)
+        episode_s = cfg.trajectory.duration_s + cfg.trajectory.hold_s  # the reference holds after T
+        super().__init__(cfg, model, 12, int(round(episode_s / dt_s)), device)
         n, dev = self.num_envs, self.device
         self.index = ReadoutIndex(model, dev)
         self.gains = platform_gains(cfg.platform)

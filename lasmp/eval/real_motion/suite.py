@@ -152,7 +152,7 @@ def env_overrides(duration_s: float, drive: str) -> dict:
     """env overrides for the suite: its episode length and platform drive."""
     if drive not in PLATFORM_DRIVES:
         raise ValueError(f"unknown platform drive {drive!r}; valid: {list(PLATFORM_DRIVES)}")
-    return {"trajectory": {"duration_s": duration_s}, "platform": dict(PLATFORM_DRIVES[drive])}
+    return {"trajectory": {"duration_s": duration_s, "hold_s": 0.0}, "platform": dict(PLATFORM_DRIVES[drive])}
 
 
 def per_scenario(episodes: SuiteEpisodes, per_episode: dict[str, np.ndarray]) -> dict[str, dict]:

@@ -43,6 +43,7 @@ from lasmp.eval import episodes as ep
 from lasmp.eval.gait import summarize_gait
 from lasmp.eval.metrics import ALL_METRICS, metric_h_des_p_m, summarize
 from lasmp.eval.mirror import MirroredBenchmark, mirror_report
+from lasmp.eval.paper import paper_key, paper_row
 from lasmp.eval.report import plot_estimates, write_results
 from lasmp.eval.run import run_benchmark
 
@@ -285,6 +286,9 @@ def main(argv=None, motions=None) -> int:
         result["estimator"] = run["estimator"]
     if mirror is not None:
         result["mirror"] = mirror
+    paper = paper_row(paper_key(args.controller, method))
+    if paper is not None:
+        result["paper"] = paper
     write_results(out_dir, result)
     if args.plot_estimates and run.get("trace") is not None and len(policy.estimation_names):
         plot_estimates(run["trace"], policy.estimation_names, env.dt_s, out_dir / "estimates.png")

@@ -318,7 +318,10 @@ def write_csv(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...]
     text = io.StringIO()
     w = csv.writer(text, lineterminator="\n")
     w.writerow(columns)
-    for i in range(len(table[columns[0]])):
+    n = len(table[columns[0]])
+    # an optional column the table lacks is written empty (a record made before it was measured)
+    table = {**{c: np.full(n, np.nan) for c in OPTIONAL_COLUMNS}, **table}
+    for i in range(n):
         w.writerow([_cell(table[c][i]) for c in columns])
     with atomic_open(path, "w") as f:
         f.write(text.getvalue())

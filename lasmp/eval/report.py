@@ -63,10 +63,20 @@ def markdown(result: dict) -> str:
         "| metric | mean | std |",
         "|---|---|---|",
     ]
+    paper = (result.get("paper") or {}).get("metrics", {})
+    if paper:
+        lines[-2:] = [
+            f"| metric | mean | std | the paper's {result['paper']['method']} (Table II, mean ± its std) |",
+            "|---|---|---|---|",
+        ]
     for key in ALL_METRICS:
         m = result["metrics"].get(key)
         if m is not None:
-            lines.append(f"| {LABELS[key]} | {_num(m['mean'])} | {_num(m['std'])} |")
+            row = f"| {LABELS[key]} | {_num(m['mean'])} | {_num(m['std'])} |"
+            if paper:
+                p = paper.get(key)
+                row += f" {_num(p['mean'], '.3f')} ± {_num(p['std'], '.2f')} |" if p else " – |"
+            lines.append(row)
     if result.get("forced_episodes") is not None:
         lines += [
             "",

@@ -133,3 +133,18 @@ def test_physics_a_state_and_its_mirror_image_stay_mirror_images_under_mirrored_
     assert torch.all(flipped > tol), (
         f"columns {torch.nonzero(flipped <= tol).flatten().tolist()} cannot catch a sign"
     )
+
+
+def test_a_training_hold_lengthens_the_episode_and_evaluation_plays_xi_eval_at_t():
+    from lasmp.eval.cli import deep_merge, eval_env_overrides
+
+    held = {"num_envs": 2, "trajectory": {"hold_s": 2.0}}
+    env = MovingPlatformEnv(build_env_cfg(held, schema=MovingPlatformCfg))
+    assert env.max_episode_length == 600  # (10 s + 2 s) / 0.02 s
+    pose, vel = env.traj_dev.evaluate(torch.tensor([10.0, 11.5]), torch.tensor([0, 0]))
+    torch.testing.assert_close(pose[1], pose[0])  # after T the reference holds its last pose
+    assert torch.all(vel[1] == 0)
+    evaluated = MovingPlatformEnv(
+        build_env_cfg(deep_merge(held, eval_env_overrides(2, 0)), schema=MovingPlatformCfg)
+    )
+    assert evaluated.max_episode_length == 500

@@ -84,3 +84,25 @@ def test_the_stance_counts_four_foot_steps_and_the_longest_air_phase_open_ones_i
     summary = summarize_gait({"steps": np.array([3.0, 3.0]), **closed})
     assert summary["four_feet_step_share"] == pytest.approx(0.375)
     assert summary["episodes_with_foot_up_over_2s"] == 0.0  # 2.0 s is not more than 2 s
+
+
+def test_metrics_md_puts_the_papers_row_beside_the_method_it_measured():
+    from lasmp.eval.paper import paper_key, paper_row
+    from lasmp.eval.report import markdown
+
+    assert (
+        paper_key(None, "LAS-MP checkpoint runs/x/model_449.pt (no_alignment_command)")
+        == "no_alignment_command"
+    )
+    assert paper_key(None, "LAS-MP checkpoint runs/x/model_449.pt (my_variant)") is None
+    metrics = {"collision_rate": {"mean": 0.1, "std": 0.01}, "power_w": {"mean": 2.0, "std": 0.1}}
+    result = {
+        "method": "m",
+        "num_episodes": 10,
+        "std_over": "10 batches",
+        "metrics": metrics,
+        "wall_time_s": 1.0,
+    }
+    text = markdown({**result, "paper": paper_row("stand_still")})
+    assert "the paper's Stand Still" in text and "| collision rate | 0.1000 | 0.0100 | 0.612 ± 0.29 |" in text
+    assert "paper" not in markdown(result)

@@ -1,0 +1,62 @@
+"""The LAS-MP+ screening table (docs/screening.md) from results/screen/<candidate>/seed<k>/.
+
+    python scripts/screen_table.py
+
+Per candidate and seed: collision on Xi_eval's first 2,000 episodes (metrics_2000.json; for the paper's
+recipe, the three-seed study's runs at 450 iterations, read from their episodes.csv), the stance, and
+the mirror evaluation on the first 1,024 (mirror_1024.json) where it ran.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from lasmp.eval import episodes as ep
+
+ROOT = Path(__file__).resolve().parents[1]
+SCREEN = ROOT / "results" / "screen"
+STUDY = ROOT / "results" / "study" / "lasmp"
+
+
+def _fmt(x, f=".3f"):
+    return "–" if x is None else format(x, f)
+
+
+def row(cand: str, seed_dir: Path) -> str:
+    m2000 = seed_dir / "metrics_2000.json"
+    if m2000.exists():
+        r = json.loads(m2000.read_text())
+        coll = r["metrics"]["collision_rate"]["mean"]
+        height = r["metrics"]["height_violation_rate"]["mean"]
+        gait = r.get("gait") or {}
+    else:  # the paper's recipe: the study's run of this seed
+        rows = ep.read_csv(STUDY / seed_dir.name / "episodes.csv")
+        coll, height, gait = float(rows["collided"][:2000].mean()), None, {}
+    mirror_file = seed_dir / "mirror_1024.json"
+    mirror = json.loads(mirror_file.read_text()) if mirror_file.exists() else {}
+    mr = mirror.get("mirror", {})
+    gait = gait or mirror.get("gait", {})
+    legs = mr.get("original_legs"), mr.get("mirrored_legs_as_original")
+    legs_txt = "–" if legs[0] is None else " / ".join("".join(f"{v} " for v in d.values()).strip() for d in legs)
+    return (
+        f"| {cand} | {seed_dir.name[4:]} | {_fmt(coll)} | {_fmt(height)} | {_fmt(gait.get('four_feet_step_share'))} | "
+        f"{_fmt(gait.get('episodes_with_foot_up_over_2s'))} | {_fmt(gait.get('median_longest_air_s'), '.2f')} | "
+        f"{_fmt(mr.get('failure_overlap'))} | {legs_txt} |"
+    )
+
+
+def main() -> None:
+    print(
+        "| candidate | seed | collision (2,000) | height violation (2,000) | steps on four feet | episodes with a foot "
+        "up > 2 s | median longest air phase (s) | mirror overlap (1,024) | failures per leg FR FL RR RL: "
+        "original / twins relabelled |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for cand_dir in sorted(p for p in SCREEN.iterdir() if p.is_dir()):
+        for seed_dir in sorted(cand_dir.glob("seed*")):
+            print(row(cand_dir.name, seed_dir))
+
+
+if __name__ == "__main__":
+    main()

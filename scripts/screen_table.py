@@ -38,7 +38,9 @@ def row(cand: str, seed_dir: Path) -> str:
     mr = mirror.get("mirror", {})
     gait = gait or mirror.get("gait", {})
     legs = mr.get("original_legs"), mr.get("mirrored_legs_as_original")
-    legs_txt = "–" if legs[0] is None else " / ".join("".join(f"{v} " for v in d.values()).strip() for d in legs)
+    legs_txt = (
+        "–" if legs[0] is None else " / ".join("".join(f"{v} " for v in d.values()).strip() for d in legs)
+    )
     return (
         f"| {cand} | {seed_dir.name[4:]} | {_fmt(coll)} | {_fmt(height)} | {_fmt(gait.get('four_feet_step_share'))} | "
         f"{_fmt(gait.get('episodes_with_foot_up_over_2s'))} | {_fmt(gait.get('median_longest_air_s'), '.2f')} | "

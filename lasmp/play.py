@@ -204,10 +204,10 @@ def scenario_file(name: str) -> tuple[str, dict]:
 
 def use_benchmark_episodes(env, path: str, first: int) -> None:
     """Reset `env` into benchmark episodes first, first + 1, ... (trajectory k with robot k mod R)."""
-    from lasmp.eval import benchmark as bm
+    from lasmp.eval.cli import load_or_make_benchmark
     from lasmp.eval.run import BenchmarkSource
 
-    bench = bm.load(path)
+    bench = load_or_make_benchmark(Path(path))  # the default benchmark is made on first use, as evaluate.py does
     if not 0 <= first < len(bench.trajectories):
         raise ValueError(f"--benchmark-episode must be in [0, {len(bench.trajectories) - 1}], got {first}")
     source = BenchmarkSource(bench, len(bench.trajectories), env.num_envs)

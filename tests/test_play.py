@@ -184,6 +184,21 @@ def test_export_needs_out(run_dir):
     assert exc.value.code == 2
 
 
+def test_benchmark_episode_on_a_fresh_clone_makes_the_default_benchmark_as_evaluate_does(
+    run_dir, tmp_path, monkeypatch
+):
+    from lasmp.deploy import load_deploy_env
+    from lasmp.eval import benchmark as bm
+    from lasmp.play import use_benchmark_episodes
+
+    monkeypatch.chdir(tmp_path)  # no benchmarks/ here
+    env, _, _, _ = load_deploy_env(str(run_dir), num_envs=1)
+    use_benchmark_episodes(env, "benchmarks/xi_eval.npz", 3)
+    bench = bm.load(tmp_path / "benchmarks" / "xi_eval.npz")
+    assert bench.num_episodes == 10_000
+    assert env.intrinsics.trunk_mass_kg[0] == bench.robots.trunk_mass_kg[3]
+
+
 def test_benchmark_episode_plays_that_trajectory_and_robot(run_dir, tmp_path, capsys):
     from lasmp.deploy import load_deploy_env
     from lasmp.eval import benchmark as bm

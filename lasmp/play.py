@@ -207,7 +207,8 @@ def use_benchmark_episodes(env, path: str, first: int) -> None:
     from lasmp.eval.cli import load_or_make_benchmark
     from lasmp.eval.run import BenchmarkSource
 
-    bench = load_or_make_benchmark(Path(path))  # the default benchmark is made on first use, as evaluate.py does
+    # the default benchmark is made on first use, as evaluate.py does
+    bench = load_or_make_benchmark(Path(path))
     if not 0 <= first < len(bench.trajectories):
         raise ValueError(f"--benchmark-episode must be in [0, {len(bench.trajectories) - 1}], got {first}")
     source = BenchmarkSource(bench, len(bench.trajectories), env.num_envs)

@@ -297,7 +297,7 @@ def episode_table(
         "collision_cause": episodes["collision_cause"],
         "steps": episodes["steps"],
         **{m: episodes[m] for m in PER_EPISODE_METRICS},
-        **{g: episodes.get(g, np.full(k, np.nan)) for g in GAIT_KEYS},
+        **{g: episodes[g] for g in GAIT_KEYS},
     }
     for key in PROBE_COLUMNS:
         t[key] = np.full(k, np.nan) if probe is None else probe[key]

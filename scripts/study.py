@@ -6,7 +6,8 @@
     python scripts/study.py next                      # the first unfinished step, trained or evaluated
     python scripts/study.py summary [--paper-columns] # results/study/summary.json from what is evaluated
     python scripts/study.py compare                   # the fast learner against float32 (issue 24, item 4)
-    python scripts/study.py table [--wide]            # the README's (docs/results.md's) table, from summary.json
+    python scripts/study.py table [--wide] [--paper]  # the README's (docs/results.md's) table, from summary.json;
+                                                      # --paper: the paper's Table II rows below ours
 
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
 appended to runs/study/<method>/seed<k>.commands before it runs, so a run can be continued in a
@@ -332,11 +333,11 @@ def _cell(entry: dict, metric: str, fmt: str) -> str:
     return " / ".join(f"{v:{fmt}}" for v in m["per_seed"])
 
 
-def table(summary_path: Path | None = None, wide: bool = False) -> str:
+def table(summary_path: Path | None = None, wide: bool = False, paper: bool = False) -> str:
     """A results table (Markdown) from summary.json. The README's (default): its rows (TABLE_ROWS;
     R-S beside its oracle), the paper's five metrics, the number of seeds. `wide`: docs/results.md's,
     every summary row on its own, every metric, the seeds by name and each seed's learner. A row not
-    yet evaluated is left out."""
+    yet evaluated is left out. `paper`: the paper's rows follow ours (`paper_rows`)."""
     from lasmp.eval.results_table import SHORT_LEARNER
 
     methods = json.loads((summary_path or RESULTS / "summary.json").read_text())["methods"]
@@ -358,7 +359,23 @@ def table(summary_path: Path | None = None, wide: bool = False) -> str:
             learners = entries[0].get("learner_per_seed") or []
             cells.append(", ".join(SHORT_LEARNER.get(x, "–") for x in learners) or "–")
         lines.append(f"| {label} | {seeds} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+    return "\n".join(lines + (paper_rows(columns, wide) if paper else []))
+
+
+def paper_rows(columns: dict, wide: bool) -> list[str]:
+    """The paper's Table II (lasmp.eval.paper, SPEC §14) as rows of our table, each marked as the
+    paper's, `mean ± the paper's std` (over what, it does not say); a column it does not report stays
+    empty. Its budget differs from ours: 8,192 envs x 4,000 iterations."""
+    from lasmp.eval.paper import PAPER_ROWS, paper_row
+
+    lines = []
+    for key in PAPER_ROWS:
+        row = paper_row(key)
+        cells = [
+            f"{m['mean']} ± {m['std']}" if (m := row["metrics"].get(metric)) else "" for metric in columns
+        ]
+        lines.append(f"| paper: {row['method']} | – | " + " | ".join(cells + ([""] if wide else [])) + " |")
+    return lines
 
 
 def main(argv=None) -> None:
@@ -367,8 +384,12 @@ def main(argv=None) -> None:
     sub.add_parser("plan")
     sub.add_parser("next")
     sub.add_parser("compare")
-    sub.add_parser("table").add_argument(
+    tab = sub.add_parser("table")
+    tab.add_argument(
         "--wide", action="store_true", help="docs/results.md's table: every row and metric on its own"
+    )
+    tab.add_argument(
+        "--paper", action="store_true", help="the paper's Table II rows below ours, marked as its"
     )
     sub.add_parser("summary").add_argument(
         "--paper-columns", action="store_true", help="print only the paper's five metrics"
@@ -391,7 +412,7 @@ def main(argv=None) -> None:
     elif args.cmd == "compare":
         print(compare())
     elif args.cmd == "table":
-        print(table(wide=args.wide))
+        print(table(wide=args.wide, paper=args.paper))
     elif args.cmd == "summary":
         from lasmp.eval import results_table
 

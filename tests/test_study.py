@@ -241,3 +241,22 @@ def test_compare_names_the_missing_run(study):
     evaluated(study.result_dir("lasmp_float32", 0, 450))  # a current-pass directory is not the first pass's
     with pytest.raises(SystemExit, match="entropy_0.01/lasmp_float32/seed0/curves_450.json does not exist"):
         study.compare()
+
+
+def test_the_table_with_paper_puts_every_row_of_the_papers_table_ii_below_ours_marked_as_the_papers(study):
+    from lasmp.eval.paper import PAPER_ROWS
+
+    methods = {"Stand Still": _entry(study, ["results/study/stand_still/seed0"], [0.634])}
+    path = study.RESULTS / "summary.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"methods": methods}))
+    assert not any(r.startswith("| paper:") for r in study.table(path).splitlines())
+    for wide in (False, True):
+        rows = study.table(path, wide=wide, paper=True).splitlines()
+        paper = [r for r in rows if r.startswith("| paper:")]
+        assert len(paper) == len(PAPER_ROWS) and rows[-len(paper) :] == paper
+        assert paper[0] == (
+            "| paper: LAS-MP | – | 0.029 ± 0.03 | 0.009 ± 0.01 | 0.366 ± 0.01 | 0.071 ± 0.01 | 2.904 ± 0.45 |"
+            + ("  |  |  |" if wide else "")
+        )
+        assert {r.count("|") for r in rows} == {rows[0].count("|")}  # every row as wide as the header

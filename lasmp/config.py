@@ -1,11 +1,11 @@
 """Configuration schemas shared by every task, their validation helpers and `build_env_cfg`.
 
 A legged_gym-like hierarchy: `BaseEnvCfg` holds what every task shares (simulation, control,
-observations); each task's schema extends it next to its task: `MovingPlatformCfg` in
-`lasmp/envs/moving_platform/cfg.py` (platform, trajectories, curriculum, rewards) and `RoughStaticCfg`
-in `lasmp/envs/rough_static/cfg.py` (terrain, commands, pushes). Both tasks draw robots from
-`DomainRandCfg` and start from `InitStateCfg`, which therefore live here too. This module imports
-nothing from `lasmp.envs`: the envs import their schemas, never the other way round.
+observations, the initial state and the domain randomization); each task's schema extends it next to
+its task with what differs: `MovingPlatformCfg` in `lasmp/envs/moving_platform/cfg.py` (platform,
+trajectories, curriculum, rewards) and `RoughStaticCfg` in `lasmp/envs/rough_static/cfg.py` (terrain,
+commands, pushes). This module imports nothing from `lasmp.envs`: the envs import their schemas, never
+the other way round.
 
 YAML files and Hydra overrides fill these schemas (`lasmp/train_cfg.py` registers them);
 `build_env_cfg` merges a plain dict onto a schema's defaults (unknown keys are refused by OmegaConf,
@@ -123,8 +123,9 @@ class ObservationsCfg:
 
 @dataclass
 class DomainRandRanges:
-    """Table B of the paper: one set for training, one for testing (the platform factors are drawn by
-    the moving-platform task only; the R-S baseline has no platform)."""
+    """Table B of the paper: one set for training, one for testing. The platform factors are the
+    moving-platform task's (its `domain_rand.py`); they stay in the table both tasks share so that every
+    saved config keeps its keys (the R-S baseline, which has no platform, never reads them)."""
 
     trunk_mass_kg: list[float] = field(default_factory=lambda: [4.0, 5.0])
     com_shift_m: list[float] = field(default_factory=lambda: [-0.2, 0.2])  # per axis x, y, z
@@ -200,6 +201,8 @@ class BaseEnvCfg:
     sim: SimCfg = field(default_factory=SimCfg)
     control: ControlCfg = field(default_factory=ControlCfg)
     observations: ObservationsCfg = field(default_factory=ObservationsCfg)
+    init_state: InitStateCfg = field(default_factory=InitStateCfg)
+    domain_rand: DomainRandCfg = field(default_factory=DomainRandCfg)
 
     def validate(self, p: str = "env"):
         check_known_keys(self, p)

@@ -11,13 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from lasmp.config import (
-    BaseEnvCfg,
-    ConfigError,
-    DomainRandCfg,
-    InitStateCfg,
-    check_positive,
-)
+from lasmp.config import BaseEnvCfg, ConfigError, check_positive
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.rewards import RewardsCfg
 
@@ -116,8 +110,6 @@ class TerminationCfg:
 
 @dataclass
 class MovingPlatformCfg(BaseEnvCfg):
-    init_state: InitStateCfg = field(default_factory=InitStateCfg)
-    domain_rand: DomainRandCfg = field(default_factory=DomainRandCfg)
     platform: PlatformCfg = field(default_factory=PlatformCfg)
     trajectory: TrajectoryCfg = field(default_factory=TrajectoryCfg)
     curriculum: CurriculumCfg = field(default_factory=CurriculumCfg)

@@ -11,14 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from lasmp.config import (
-    BaseEnvCfg,
-    ConfigError,
-    DomainRandCfg,
-    InitStateCfg,
-    check_positive,
-    check_range,
-)
+from lasmp.config import BaseEnvCfg, ConfigError, check_positive, check_range
 from lasmp.envs.rough_static.rewards import RoughRewardsCfg
 
 
@@ -104,8 +97,6 @@ class RoughStaticCfg(BaseEnvCfg):
     terrain: TerrainCfg = field(default_factory=TerrainCfg)
     commands: CommandsCfg = field(default_factory=CommandsCfg)
     pushes: PushCfg = field(default_factory=PushCfg)
-    init_state: InitStateCfg = field(default_factory=InitStateCfg)
-    domain_rand: DomainRandCfg = field(default_factory=DomainRandCfg)  # platform factors are unused
     rewards: RoughRewardsCfg = field(default_factory=RoughRewardsCfg)
     termination: RoughTerminationCfg = field(default_factory=RoughTerminationCfg)
 

@@ -122,18 +122,25 @@ class BaseEnv(VecEnv):
                 )
                 return False
             live = {k: getattr(self, k) for k in self.RUN_STATE + self.TASK_STATE}
-            if set(saved["attrs"]) != set(live):
+            saved_attrs = self._upgrade_run_state(saved["attrs"])
+            if set(saved_attrs) != set(live):
                 raise PlainStateError(
-                    f"saved running state holds {sorted(saved['attrs'])}, this env {sorted(live)}"
+                    f"saved running state holds {sorted(saved_attrs)}, this env {sorted(live)}"
                 )
             attrs = unpack(
-                saved["attrs"], live, self.device, "running state", self.RUN_STATE_CLASSES
+                saved_attrs, live, self.device, "running state", self.RUN_STATE_CLASSES
             )  # checked before any change
             self.sim.set_state(unpack(saved["sim"], name="physics state"))
             for key, value in attrs.items():
                 setattr(self, key, value)
             return True
         return False
+
+    def _upgrade_run_state(self, attrs: dict) -> dict:
+        """The saved running state (`pack` output by attribute name) as this version of the task holds
+        it: a task whose state changed shape since checkpoints were written converts the older form here
+        (unchanged by default), so that those checkpoints still resume exactly."""
+        return attrs
 
     def _task_state(self) -> dict:
         return {}

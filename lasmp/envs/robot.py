@@ -3,14 +3,14 @@
 - where its state lives: `RobotIndex` (addresses in qpos, qvel, ctrl, sensordata, site_xpos);
 - what it reads: `read_robot` -> `RobotReadout` (trunk pose and velocities, IMU, joints, feet);
 - what it is: `RobotIntrinsics` (the randomized trunk mass, CoM shift, foot friction, PD gains),
-  written into the batch's per-env model by `RobotIntrinsicsWriter`; `Intrinsics`, the per-env
-  draw of the paper's Table B (`nominal_intrinsics`, `sample_intrinsics`) that both tasks make;
+  the robot's part of the paper's Table B (`nominal_robot_intrinsics`, `sample_robot_intrinsics`),
+  written into the batch's per-env model by `RobotIntrinsicsWriter`;
 - how its feet step: `step_gait_phase` (touchdown, lift-off, the air and contact phases that end);
 - what the policy sees of it: `proprioception`, o_t (`OBS_DIM` numbers, sensors only);
 - which envs diverged: `screen_faults`, so that NaNs stay out of rewards, logs and observations.
 
 A task adds its world on top (`moving_platform/readout.py` extends the index and the readout with
-the platform's quantities). The scene holds the A1 of `lasmp.robots.a1` with its names and the
+the platform's quantities, `moving_platform/domain_rand.py` the intrinsics with the platform's gains). The scene holds the A1 of `lasmp.robots.a1` with its names and the
 sensors `imu_acc`, `imu_gyro`, `<leg>_foot_contact` (found + net force, world frame) and
 `<body>_collision` (found) for every body of `a1.NON_FOOT_COLLISION_GEOMS`.
 
@@ -210,42 +210,30 @@ class RobotIntrinsics:
         )
 
 
-@dataclass
-class Intrinsics(RobotIntrinsics):
-    """One draw of Table B per env: the robot's parameters and the platform's per-axis PD gain factors
-    (unitless), which only the moving-platform task writes into its model; the R-S baseline draws and
-    carries them too (its random stream and its checkpoints hold them)."""
-
-    platform_kp_factor: np.ndarray  # (n, 6) per platform axis, PLATFORM_JOINTS order
-    platform_kd_factor: np.ndarray  # (n, 6)
-
-
-def nominal_intrinsics(n: int, kd_factor_ref: float) -> Intrinsics:
-    return Intrinsics(
+def nominal_robot_intrinsics(n: int) -> RobotIntrinsics:
+    """n robots as published: the A1's trunk mass, no CoM shift, friction 1, the nominal PD gains."""
+    return RobotIntrinsics(
         trunk_mass_kg=np.full(n, a1.TRUNK_MASS_KG),
         com_shift_m=np.zeros((n, 3)),
         foot_friction=np.ones(n),
         joint_kp=np.full((n, 12), a1.KP_NOMINAL_NM_PER_RAD),
         joint_kd=np.full((n, 12), a1.KD_NOMINAL_NM_S_PER_RAD),
-        platform_kp_factor=np.ones((n, 6)),
-        platform_kd_factor=np.full((n, 6), kd_factor_ref),
     )
 
 
-def sample_intrinsics(n: int, r: DomainRandRanges, rng: np.random.Generator) -> Intrinsics:
-    """n uniform draws from the ranges `r`, on the host (in field order: the random stream's order)."""
+def sample_robot_intrinsics(n: int, r: DomainRandRanges, rng: np.random.Generator) -> RobotIntrinsics:
+    """n uniform draws from the robot's ranges of `r`, on the host (in field order: the random
+    stream's order)."""
 
     def u(lo_hi, *shape):
         return rng.uniform(lo_hi[0], lo_hi[1], size=(n, *shape))
 
-    return Intrinsics(
+    return RobotIntrinsics(
         trunk_mass_kg=u(r.trunk_mass_kg),
         com_shift_m=u(r.com_shift_m, 3),
         foot_friction=u(r.foot_friction),
         joint_kp=u(r.joint_kp, 12),
         joint_kd=u(r.joint_kd, 12),
-        platform_kp_factor=u(r.platform_kp_factor, 6),
-        platform_kd_factor=u(r.platform_kd_factor, 6),
     )
 
 

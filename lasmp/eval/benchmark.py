@@ -6,7 +6,7 @@ Definition
       (``ranges_for_split("test")``: N uniform in 4..16, T = 10 s), from
       ``np.random.default_rng([seed, 0])``.
     * ``robots``: R (default 1,024) intrinsic-parameter draws
-      (:func:`lasmp.envs.robot.sample_intrinsics`) from the *testing* ranges
+      (:func:`lasmp.envs.moving_platform.domain_rand.sample_intrinsics`) from the *testing* ranges
       of Table B (``DomainRandCfg().test``: trunk mass, CoM shift, foot friction, joint Kp/Kd and
       the platform PD gain factors), from ``np.random.default_rng([seed, 1])``.
       The two streams are independent: changing M does not change the robots. Changing M does
@@ -57,7 +57,7 @@ import numpy as np
 from lasmp.atomic import atomic_open
 from lasmp.config import DomainRandCfg
 from lasmp.envs import trajectories as T
-from lasmp.envs.robot import Intrinsics, sample_intrinsics
+from lasmp.envs.moving_platform.domain_rand import Intrinsics, sample_intrinsics
 
 FORMAT_NAME = "lasmp-benchmark"
 FORMAT_VERSION = 2  # 2: approximating B-splines, the construction recorded (spline, spline_degree)

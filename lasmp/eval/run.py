@@ -20,7 +20,8 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
-from lasmp.envs.robot import Intrinsics, as_numpy, take_columns
+from lasmp.envs.moving_platform.domain_rand import Intrinsics
+from lasmp.envs.robot import as_numpy, take_columns
 from lasmp.eval.gait import GAIT_KEYS, GaitTracker
 from lasmp.eval.metrics import EpisodeMetrics, TrunkPose, metric_h_des_p_m
 from lasmp.robots import a1

@@ -13,8 +13,9 @@ import torch
 from lasmp.config import ConfigError, build_env_cfg
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
+from lasmp.envs.moving_platform.domain_rand import nominal_intrinsics
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
-from lasmp.envs.robot import as_numpy, nominal_intrinsics
+from lasmp.envs.robot import as_numpy
 from lasmp.robots import a1
 
 G = 9.81

@@ -1,14 +1,54 @@
-"""The platform's part of the per-env intrinsic parameters (SPEC §6, Table B): drawn at reset on the
-host (numpy) with the robot's (`lasmp.envs.robot.Intrinsics`), written into the physics backend's
-per-env model fields here: the robot's, then the platform's per-axis PD gains.
+"""The moving-platform task's per-env intrinsic parameters (SPEC §6, Table B): the robot's
+(`lasmp.envs.robot.RobotIntrinsics`) and the platform's per-axis PD gain factors, drawn at reset on
+the host (numpy) and written into the physics backend's per-env model fields: the robot's, then the
+platform's PD gains. The robot layer knows nothing of a platform: its part is drawn and written there.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import numpy as np
 import torch
 
+from lasmp.config import DomainRandRanges
 from lasmp.envs.moving_platform.scene import PlatformGains
-from lasmp.envs.robot import Intrinsics, RobotIntrinsicsWriter
+from lasmp.envs.robot import (
+    RobotIntrinsics,
+    RobotIntrinsicsWriter,
+    nominal_robot_intrinsics,
+    sample_robot_intrinsics,
+)
+
+
+@dataclass
+class Intrinsics(RobotIntrinsics):
+    """One draw of Table B per env: the robot's parameters and the platform's per-axis PD gain factors
+    (unitless), which scale the gains of `PlatformGains`."""
+
+    platform_kp_factor: np.ndarray  # (n, 6) per platform axis, PLATFORM_JOINTS order
+    platform_kd_factor: np.ndarray  # (n, 6)
+
+
+def nominal_intrinsics(n: int, kd_factor_ref: float) -> Intrinsics:
+    """n robots as published on platforms at their reference gains (kp factor 1, kd factor
+    `kd_factor_ref`)."""
+    return Intrinsics(
+        **vars(nominal_robot_intrinsics(n)),
+        platform_kp_factor=np.ones((n, 6)),
+        platform_kd_factor=np.full((n, 6), kd_factor_ref),
+    )
+
+
+def sample_intrinsics(n: int, r: DomainRandRanges, rng: np.random.Generator) -> Intrinsics:
+    """n uniform draws from the ranges `r`, on the host: the robot's, then the platform's factors (the
+    random stream's order)."""
+    robot = sample_robot_intrinsics(n, r, rng)
+    return Intrinsics(
+        **vars(robot),
+        platform_kp_factor=rng.uniform(r.platform_kp_factor[0], r.platform_kp_factor[1], size=(n, 6)),
+        platform_kd_factor=rng.uniform(r.platform_kd_factor[0], r.platform_kd_factor[1], size=(n, 6)),
+    )
 
 
 class IntrinsicsWriter(RobotIntrinsicsWriter):

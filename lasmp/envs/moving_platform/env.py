@@ -22,7 +22,12 @@ from lasmp.envs import trajectories as trj
 from lasmp.envs.base_env import BaseEnv, column_runs
 from lasmp.envs.curriculum import SharedCurriculum, WaypointCurriculum
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
-from lasmp.envs.moving_platform.domain_rand import IntrinsicsWriter
+from lasmp.envs.moving_platform.domain_rand import (
+    Intrinsics,
+    IntrinsicsWriter,
+    nominal_intrinsics,
+    sample_intrinsics,
+)
 from lasmp.envs.moving_platform.mirror import ACTIONS, ObservationMirror, nominal_com_y_m
 from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read
 from lasmp.envs.moving_platform.rewards import REWARD_TERMS
@@ -37,11 +42,8 @@ from lasmp.envs.moving_platform.state import StepState
 from lasmp.envs.rewards import RewardManager
 from lasmp.envs.robot import (
     OBS_DIM,
-    Intrinsics,
     as_slice,
-    nominal_intrinsics,
     proprioception,
-    sample_intrinsics,
     screen_faults,
     step_gait_phase,
     update_rows,

@@ -16,7 +16,7 @@ from tensordict import TensorDict
 
 from lasmp.envs import mirror as m
 from lasmp.envs import trajectories as trj
-from lasmp.envs.robot import Intrinsics
+from lasmp.envs.moving_platform.domain_rand import Intrinsics
 from lasmp.robots import a1
 
 # o: [accelerometer_b, gyro_b, roll & pitch, q - q_nominal, q_dot, a_{t-1}] (lasmp/envs/robot.py)

@@ -33,15 +33,15 @@ from lasmp.envs.base_env import BaseEnv, column_runs
 from lasmp.envs.rewards import RewardManager
 from lasmp.envs.robot import (
     OBS_DIM,
-    Intrinsics,
     RobotIndex,
+    RobotIntrinsics,
     RobotIntrinsicsWriter,
     RobotReadout,
     as_slice,
-    nominal_intrinsics,
+    nominal_robot_intrinsics,
     proprioception,
     read_robot,
-    sample_intrinsics,
+    sample_robot_intrinsics,
     screen_faults,
     step_gait_phase,
     update_rows,
@@ -66,7 +66,7 @@ class RoughStaticEnv(BaseEnv):
         n, dev = self.num_envs, self.device
         self.index = RobotIndex(model, dev)
         self.writer = RobotIntrinsicsWriter(self.sim)
-        self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.domain_rand.train.platform_kd_factor[0])
+        self.intrinsics: RobotIntrinsics = nominal_robot_intrinsics(n)
         self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
         self.q_nominal = self.tensor(a1.Q_NOMINAL_RAD)
         self.qpos0 = self.tensor(model.qpos0)
@@ -185,9 +185,13 @@ class RoughStaticEnv(BaseEnv):
         ids_h = ids.cpu().numpy()  # the host draws below are per env
         dr = self.cfg.domain_rand
         if dr.enabled:
-            params = sample_intrinsics(n, dr.ranges, self.rng)
+            params = sample_robot_intrinsics(n, dr.ranges, self.rng)
+            # as many uniforms as the platform's gain factors take, unused: the R-S baseline drew them
+            # from the table both tasks share until the robot layer left the platform to its task, and
+            # a seed trains as it did (the study's R-S runs)
+            self.rng.uniform(size=(n, 12))
         else:
-            params = nominal_intrinsics(n, dr.train.platform_kd_factor[0])
+            params = nominal_robot_intrinsics(n)
         update_rows(self.intrinsics, ids_h, params)
         self.x_imp[ids] = self.tensor(params.x_imp())
         self.writer.write(ids, params)
@@ -264,3 +268,13 @@ class RoughStaticEnv(BaseEnv):
         "last_state",
     )
     RUN_STATE_CLASSES = (rw.RoughStepState, RobotReadout)
+
+    def _upgrade_run_state(self, attrs: dict) -> dict:
+        """A checkpoint written while the robot layer drew the platform's gain factors holds the
+        robots as `Intrinsics`, with those factors, which the R-S baseline never used: they are
+        dropped, and the robots read back as the `RobotIntrinsics` they are."""
+        intrinsics = attrs.get("intrinsics")
+        if isinstance(intrinsics, dict) and intrinsics.get("class") == "Intrinsics":
+            fields = {k: v for k, v in intrinsics["fields"].items() if not k.startswith("platform_")}
+            attrs = {**attrs, "intrinsics": {**intrinsics, "class": "RobotIntrinsics", "fields": fields}}
+        return attrs

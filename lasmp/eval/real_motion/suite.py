@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from lasmp.envs import trajectories as trj
-from lasmp.envs.robot import Intrinsics
+from lasmp.envs.moving_platform.domain_rand import Intrinsics
 from lasmp.eval.benchmark import episode_draws
 from lasmp.eval.metrics import ALL_METRICS, EPISODE_KEY, METRICS, summarize
 from lasmp.motions.motion import Motion, derivatives, to_trajectories

@@ -12,6 +12,11 @@ it, so that no NaN ever reaches a policy.
 `extras["time_outs"]` flags episodes that ended at the time limit (a truncation, to be
 bootstrapped), `extras["log"]` holds per-episode reward terms and task metrics.
 
+Every task drives the A1 (`lasmp.envs.robot`), so the robot's part of a step and of a reset is
+written here once: `_apply_joint_targets` (the actions as joint position targets) and
+`_standing_qpos` / `_reset_physics` (a robot standing at its nominal stance, at rest); a task adds
+its world's part (the platform's drive, pushes).
+
 Device: every per-step quantity is a torch tensor on the env's device (the physics backend's,
 `lasmp.envs.backends`); only the ids of the envs to reset and the logged numbers come to the
 host. Random draws at reset (trajectories, intrinsics, initial yaw) are made on the host with
@@ -30,8 +35,10 @@ from tensordict import TensorDict
 
 from lasmp.config import BaseEnvCfg
 from lasmp.envs.backends import make_backend
-from lasmp.envs.robot import OBS_DIM
+from lasmp.envs.robot import OBS_DIM, RobotIndex, as_slice
+from lasmp.envs.rotations import yaw_quat
 from lasmp.plainstate import PlainStateError, pack, unpack
+from lasmp.robots import a1
 
 
 class BaseEnv(VecEnv):
@@ -48,7 +55,15 @@ class BaseEnv(VecEnv):
                 f"lasmp.config.build_env_cfg(overrides, schema={name})"
             )
 
-    def __init__(self, cfg: BaseEnvCfg, model, num_actions: int, max_episode_length: int, device="cpu"):
+    def __init__(
+        self,
+        cfg: BaseEnvCfg,
+        model,
+        num_actions: int,
+        max_episode_length: int,
+        device="cpu",
+        index_class: type[RobotIndex] = RobotIndex,
+    ):
         self.cfg = cfg
         self.sim = make_backend(cfg.backend, model, cfg.num_envs, cfg.sim, device)
         self.num_envs = cfg.num_envs
@@ -58,6 +73,15 @@ class BaseEnv(VecEnv):
         self.dtype = self.sim.dtype  # of the physics quantities (float64 on the CPU backend)
         self.dt_s = cfg.sim.dt_s * cfg.sim.decimation
         self.rng = np.random.default_rng(cfg.seed)
+        # the A1: its addresses in the model (`index_class`: the robot's, or a task's extension with its
+        # world's), its nominal stance, and the actions a_t and a_{t-1}
+        self.index = index_class(model, self.device)
+        self.q_nominal = self.tensor(a1.Q_NOMINAL_RAD)
+        self.qpos0 = self.tensor(model.qpos0)
+        self.trunk_height_m = a1.nominal_trunk_height_m(model)
+        self._robot_ctrl = as_slice(self.index.joint_act)  # the columns a step writes (a slice: faster)
+        self.action = torch.zeros((self.num_envs, num_actions), dtype=self.dtype, device=self.device)
+        self.action_prev = torch.zeros_like(self.action)
         self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
         self.fault_count = 0  # faulted envs since construction
         self._obs: TensorDict | None = None
@@ -77,7 +101,16 @@ class BaseEnv(VecEnv):
 
     # what a checkpoint carries for an exact resume, besides the physics: the per-env buffers the step
     # loop reads (a task lists its own in TASK_STATE)
-    RUN_STATE = ("episode_length_buf", "history", "_obs", "_fresh", "fault_count", "nonfinite_obs_values")
+    RUN_STATE = (
+        "episode_length_buf",
+        "history",
+        "_obs",
+        "_fresh",
+        "fault_count",
+        "nonfinite_obs_values",
+        "action",
+        "action_prev",
+    )
     TASK_STATE: tuple[str, ...] = ()
     # dataclasses of the running state that a fresh env may not hold yet (None): the only classes a
     # checkpoint's running state may build (`lasmp.plainstate`)
@@ -172,6 +205,36 @@ class BaseEnv(VecEnv):
     def _observations(self) -> TensorDict:
         """Observation groups of all envs (tensors on self.device, float32), every value finite:
         build the arrays and hand them to `_package_observations`."""
+
+    # -- the robot's part of a step and of a reset ----------------------------------------------
+    def _apply_joint_targets(self, actions: torch.Tensor) -> None:
+        """The robot's half of `_apply_actions`: a_t becomes a_{t-1}, `actions` become a_t, and the
+        joints' position actuators take the targets q_nominal + action_scale * a_t."""
+        self.action_prev.copy_(self.action)
+        self.action.copy_(actions)
+        self.sim.ctrl[:, self._robot_ctrl] = self.q_nominal + self.cfg.control.action_scale * actions
+
+    def _standing_qpos(self, xy_w: np.ndarray, ground_z_m, yaw_rad: np.ndarray) -> torch.Tensor:
+        """(n, nq) positions of n robots standing at q_nominal: the trunk origin above `xy_w` (n, 2),
+        at the nominal stance's height over `ground_z_m` (a number, or (n,)) plus
+        `init_state.foot_clearance_m` (the feet touch, never inside the ground), heading `yaw_rad` (n,);
+        the rest is the model's qpos0, where a task sets its world's part."""
+        ix, clearance_m = self.index, self.cfg.init_state.foot_clearance_m
+        qpos = self.qpos0.repeat(len(xy_w), 1)
+        qpos[:, ix.root_qpos : ix.root_qpos + 2] = self.tensor(xy_w)
+        qpos[:, ix.root_qpos + 2] = self.tensor(ground_z_m + self.trunk_height_m + clearance_m)
+        qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(self.tensor(yaw_rad))
+        qpos[:, ix.joint_qpos] = self.q_nominal
+        return qpos
+
+    def _reset_physics(self, ids: torch.Tensor, qpos: torch.Tensor) -> None:
+        """Envs `ids` start anew at `qpos`, at rest, their joints' targets at q_nominal (every other
+        control 0); the model's constants are recomputed (the intrinsics were just written)."""
+        n, m = len(ids), self.sim.model
+        ctrl = torch.zeros((n, m.nu), dtype=self.dtype, device=self.device)
+        ctrl[:, self.index.joint_act] = self.q_nominal
+        qvel = torch.zeros((n, m.nv), dtype=self.dtype, device=self.device)
+        self.sim.reset(ids, qpos, qvel, ctrl, set_const=True)
 
     # -- the contract --------------------------------------------------------------------------
     def reset(self) -> tuple[TensorDict, dict]:

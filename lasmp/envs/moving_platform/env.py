@@ -48,9 +48,7 @@ from lasmp.envs.robot import (
     step_gait_phase,
     update_rows,
 )
-from lasmp.envs.rotations import yaw_quat
 from lasmp.envs.trajectories.device import DevicePoly
-from lasmp.robots import a1
 
 
 def initial_pose(u: np.ndarray, init) -> tuple[np.ndarray, np.ndarray]:
@@ -75,9 +73,8 @@ class MovingPlatformEnv(BaseEnv):
         model = build_model(cfg.platform, cfg.sim)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
         episode_s = cfg.trajectory.duration_s + cfg.trajectory.hold_s  # the reference holds after T
-        super().__init__(cfg, model, 12, int(round(episode_s / dt_s)), device)
+        super().__init__(cfg, model, 12, int(round(episode_s / dt_s)), device, index_class=ReadoutIndex)
         n, dev = self.num_envs, self.device
-        self.index = ReadoutIndex(model, dev)
         self.gains = platform_gains(cfg.platform)
         plf_act_pos, plf_act_vel = platform_actuator_ids(model)
         self.plf_act_pos = torch.as_tensor(plf_act_pos, device=dev)
@@ -85,19 +82,15 @@ class MovingPlatformEnv(BaseEnv):
         self.writer = IntrinsicsWriter(self.sim, self.gains, self.plf_act_pos, self.plf_act_vel)
         self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.platform.kd_factor_ref)  # host copy
         self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
-        self.q_nominal = self.tensor(a1.Q_NOMINAL_RAD)
-        self.trunk_height_m = a1.nominal_trunk_height_m(model)
         self.plf_act_adr = torch.as_tensor(
             model.actuator_actadr[plf_act_pos], device=dev
         )  # servo targets in `act`
-        self.robot_act = self.index.joint_act
         # the columns the step writes, as slices where they are (evenly spaced runs: faster writes)
-        self._robot_ctrl, self._plf_pos_ctrl, self._plf_vel_ctrl, self._plf_act = (
-            as_slice(ix) for ix in (self.robot_act, self.plf_act_pos, self.plf_act_vel, self.plf_act_adr)
+        self._plf_pos_ctrl, self._plf_vel_ctrl, self._plf_act = (
+            as_slice(ix) for ix in (self.plf_act_pos, self.plf_act_vel, self.plf_act_adr)
         )
         self.pose_to_joint = torch.as_tensor(POSE_TO_JOINT, device=dev)
         self._rows2 = torch.arange(n, device=dev).repeat(2)  # one reference evaluation for two times
-        self.qpos0 = self.tensor(model.qpos0)
 
         tc, cc = cfg.trajectory, cfg.curriculum
         self.traj_ranges = trj.ranges_for_split(tc.split)
@@ -135,8 +128,6 @@ class MovingPlatformEnv(BaseEnv):
         )
 
         zeros = lambda *shape: torch.zeros((n, *shape), dtype=self.dtype, device=dev)  # noqa: E731
-        self.action = zeros(12)
-        self.action_prev = zeros(12)
         self.tau_prev = zeros(12)
         self.q_dot_prev = zeros(12)
         self.contact_prev = torch.zeros((n, 4), dtype=torch.bool, device=dev)
@@ -165,10 +156,8 @@ class MovingPlatformEnv(BaseEnv):
     # -- control -------------------------------------------------------------------------------
 
     def _apply_actions(self, actions: torch.Tensor) -> None:
-        self.action_prev.copy_(self.action)
-        self.action.copy_(actions)
+        self._apply_joint_targets(actions)
         ctrl = self.sim.ctrl
-        ctrl[:, self._robot_ctrl] = self.q_nominal + self.cfg.control.action_scale * actions
         # the kp servo's target (its `act`: 0 after a reset, where every trajectory starts) ramps
         # from where the last step left it, x_ref(t) up to rounding, to x_ref(t + dt); the damping
         # term tracks the reference velocity at mid-step (or damps toward rest, without velocity
@@ -295,7 +284,7 @@ class MovingPlatformEnv(BaseEnv):
         self.traj_dev.replace_rows(ids, new_traj)
         self.traj_level[ids_h] = levels
 
-        init, ix = self.cfg.init_state, self.index
+        init = self.cfg.init_state
         if pose_u is None:  # three uniforms per env, in the order training has always drawn them
             pose_u = np.zeros((n, 3))
             pose_u[:, 0] = self.rng.uniform(size=n)
@@ -303,18 +292,9 @@ class MovingPlatformEnv(BaseEnv):
                 pose_u[:, 1] = self.rng.uniform(size=n)
                 pose_u[:, 2] = self.rng.uniform(size=n)
         yaw, xy = initial_pose(pose_u, init)
-        qpos = self.qpos0.repeat(n, 1)
-        qpos[:, ix.root_qpos : ix.root_qpos + 2] = self.tensor(xy)
-        qpos[:, ix.root_qpos + 2] = self.plf_top_m + self.trunk_height_m + init.foot_clearance_m
-        qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(self.tensor(yaw))
-        qpos[:, ix.joint_qpos] = self.q_nominal
-        qpos[:, ix.plf_qpos] = 0.0
-        m = self.sim.model
-        ctrl = torch.zeros((n, m.nu), dtype=self.dtype, device=self.device)
-        ctrl[:, self.robot_act] = self.q_nominal
-        self.sim.reset(
-            ids, qpos, torch.zeros((n, m.nv), dtype=self.dtype, device=self.device), ctrl, set_const=True
-        )
+        qpos = self._standing_qpos(xy, self.plf_top_m, yaw)  # on the platform's top (centred at the origin)
+        qpos[:, self.index.plf_qpos] = 0.0
+        self._reset_physics(ids, qpos)
 
         for buf in (
             self.action,
@@ -356,8 +336,6 @@ class MovingPlatformEnv(BaseEnv):
 
     # -- checkpoint state ----------------------------------------------------------------------
     TASK_STATE = (
-        "action",
-        "action_prev",
         "tau_prev",
         "q_dot_prev",
         "contact_prev",

@@ -33,11 +33,9 @@ from lasmp.envs.base_env import BaseEnv, column_runs
 from lasmp.envs.rewards import RewardManager
 from lasmp.envs.robot import (
     OBS_DIM,
-    RobotIndex,
     RobotIntrinsics,
     RobotIntrinsicsWriter,
     RobotReadout,
-    as_slice,
     nominal_robot_intrinsics,
     proprioception,
     read_robot,
@@ -46,11 +44,9 @@ from lasmp.envs.robot import (
     step_gait_phase,
     update_rows,
 )
-from lasmp.envs.rotations import yaw_quat
 from lasmp.envs.rough_static import rewards as rw
 from lasmp.envs.rough_static.cfg import RoughStaticCfg
 from lasmp.envs.rough_static.terrain import build_model
-from lasmp.robots import a1
 
 SPAWN_FOOTPRINT_M = 0.4  # half-side of the square under the robot searched for the highest ground
 
@@ -64,14 +60,9 @@ class RoughStaticEnv(BaseEnv):
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
         super().__init__(cfg, model, 12, int(round(cfg.episode_length_s / dt_s)), device)
         n, dev = self.num_envs, self.device
-        self.index = RobotIndex(model, dev)
         self.writer = RobotIntrinsicsWriter(self.sim)
         self.intrinsics: RobotIntrinsics = nominal_robot_intrinsics(n)
         self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
-        self.q_nominal = self.tensor(a1.Q_NOMINAL_RAD)
-        self.qpos0 = self.tensor(model.qpos0)
-        self._robot_ctrl = as_slice(self.index.joint_act)  # the columns the step writes (a slice: faster)
-        self.trunk_height_m = a1.nominal_trunk_height_m(model)
         # every group is a run of the critic's columns [o, x_exp, x_imp, command, height (1), phi_body_w (3)]
         self.obs_columns = column_runs(
             {"policy": OBS_DIM, "priv_explicit": 13, "priv_implicit": self.x_imp.shape[1], "command": 3},
@@ -87,8 +78,6 @@ class RoughStaticEnv(BaseEnv):
             n, dtype=torch.bool, device=dev
         )  # envs pushed at the start of the last step
         self.push_dv_mps = zeros(2)  # their added world-frame xy velocity
-        self.action = zeros(12)
-        self.action_prev = zeros(12)
         self.q_dot_prev = zeros(12)
         self.contact_prev = torch.zeros((n, 4), dtype=torch.bool, device=dev)
         self.t_air_s = zeros(4)
@@ -125,9 +114,7 @@ class RoughStaticEnv(BaseEnv):
 
     # -- control -------------------------------------------------------------------------------
     def _apply_actions(self, actions: torch.Tensor) -> None:
-        self.action_prev.copy_(self.action)
-        self.action.copy_(actions)
-        self.sim.ctrl[:, self._robot_ctrl] = self.q_nominal + self.cfg.control.action_scale * actions
+        self._apply_joint_targets(actions)
         self.pushed.fill_(False)
         if self.cfg.pushes.enabled:
             due = torch.nonzero(self.push_time_left_s <= 0.0).flatten()
@@ -201,20 +188,7 @@ class RoughStaticEnv(BaseEnv):
         xy = self.rng.uniform(-half, half, size=(n, 2))
         yaw = self.rng.uniform(*self.cfg.init_state.yaw_range_rad, size=n)
         ground = self.terrain.max_height_near(xy, SPAWN_FOOTPRINT_M)
-        ix = self.index
-        qpos = self.qpos0.repeat(n, 1)
-        qpos[:, ix.root_qpos : ix.root_qpos + 2] = self.tensor(xy)
-        qpos[:, ix.root_qpos + 2] = self.tensor(
-            ground + self.trunk_height_m + self.cfg.init_state.foot_clearance_m
-        )
-        qpos[:, ix.root_qpos + 3 : ix.root_qpos + 7] = yaw_quat(self.tensor(yaw))
-        qpos[:, ix.joint_qpos] = self.q_nominal
-        m = self.sim.model
-        ctrl = torch.zeros((n, m.nu), dtype=self.dtype, device=self.device)
-        ctrl[:, ix.joint_act] = self.q_nominal
-        self.sim.reset(
-            ids, qpos, torch.zeros((n, m.nv), dtype=self.dtype, device=self.device), ctrl, set_const=True
-        )
+        self._reset_physics(ids, self._standing_qpos(xy, ground, yaw))
 
         self._resample_commands(ids)
         self.push_time_left_s[ids] = self.tensor(self.rng.uniform(*self.cfg.pushes.interval_s, size=n))
@@ -256,8 +230,6 @@ class RoughStaticEnv(BaseEnv):
         "push_time_left_s",
         "pushed",
         "push_dv_mps",
-        "action",
-        "action_prev",
         "q_dot_prev",
         "contact_prev",
         "t_air_s",

@@ -1,5 +1,5 @@
-"""The bad-input tests' fixtures: each test runs in its own working directory; a finished tiny run
-per module, and a copy of it per test."""
+"""The bad-input tests' fixtures: each test runs in its own working directory; one finished tiny run
+for the session, and a copy of it per test."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ def _in_tmp(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # a default run directory (logs/...) lands here
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def base_run(tmp_path_factory) -> Path:
     """A finished tiny run: config.yaml, model_0.pt, model_1.pt."""
     run = tmp_path_factory.mktemp("base") / "run"

@@ -3,7 +3,7 @@
     python scripts/screen_table.py
 
 Per candidate and seed: collision on Xi_eval's first 2,000 episodes (metrics_2000.json; for the paper's
-recipe, the three-seed study's runs at 450 iterations, read from their episodes.csv), the stance, and
+recipe, the three-seed study's runs at 450 iterations, read from their episodes.csv.gz), the stance, and
 the mirror evaluation on the first 1,024 (mirror_1024.json) where it ran.
 """
 
@@ -31,7 +31,7 @@ def row(cand: str, seed_dir: Path) -> str:
         height = r["metrics"]["height_violation_rate"]["mean"]
         gait = r.get("gait") or {}
     else:  # the paper's recipe: the study's run of this seed
-        rows = ep.read_csv(STUDY / seed_dir.name / "episodes.csv")
+        rows = ep.read_csv(ep.episodes_path(STUDY / seed_dir.name))
         coll, height, gait = float(rows["collided"][:2000].mean()), None, {}
     mirror_file = seed_dir / "mirror_1024.json"
     mirror = json.loads(mirror_file.read_text()) if mirror_file.exists() else {}

@@ -279,9 +279,9 @@ def first_collision_rate(method: str, seed: int) -> float | None:
     evaluation (None when it is not evaluated): the breakdown's count, whether the evaluation covered
     those episodes alone or all 10,000."""
     from lasmp.eval.breakdown import breakdown, first_episodes
-    from lasmp.eval.episodes import read_csv
+    from lasmp.eval.episodes import episodes_path, read_csv
 
-    path = result_dir(method, seed, BUDGET, root=FIRST_PASS) / "episodes.csv"
+    path = episodes_path(result_dir(method, seed, BUDGET, root=FIRST_PASS))
     if not path.exists():
         return None
     b = breakdown(first_episodes(read_csv(path), FLOAT32_EPISODES))

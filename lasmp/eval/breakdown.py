@@ -1,10 +1,11 @@
-"""Where a method fails: the collision rate of an evaluation broken down by episode, from episodes.csv.
+"""Where a method fails: the collision rate of an evaluation broken down by episode, from its record.
 
     python -m lasmp.eval.breakdown DIR [--plot out.png] [--late-s 8] [--episodes K] [--row LABEL]
 
-Reads DIR/episodes.csv (written by evaluate.py) and prints, as Markdown tables, the collision rate
-(with the episode count behind it) by number of waypoints N, by the platform's maximum tilt (bins of
-0.1 rad, the last open), by foot friction (bins of 0.1), forced vs not forced (the platform probe's
+Reads DIR/episodes.csv.gz (written by evaluate.py; DIR/episodes.csv in evaluations made before it
+compressed them) and prints, as Markdown tables, the collision rate (with the episode count behind
+it) by number of waypoints N, by the platform's maximum tilt (bins of 0.1 rad, the last open), by
+foot friction (bins of 0.1), forced vs not forced (the platform probe's
 Coulomb block, lasmp.eval.episodes), the failures by cause (the first body that touched, or the fall),
 and the share of failures that come after --late-s seconds (8 by default: the platform is often
 still converging to its last waypoint when the episode ends). `--plot` draws the first three
@@ -29,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.eval.episodes import PROBE_COLUMNS, EpisodesFileError, read_csv
+from lasmp.eval.episodes import PROBE_COLUMNS, EpisodesFileError, episodes_path, read_csv
 
 TILT_BINS_RAD = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)  # the last bin is [0.7, inf)
 FRICTION_BINS = (0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3)  # the testing range, U(0.7, 1.3)
@@ -235,13 +236,13 @@ def main(argv=None) -> int:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("dir", type=Path, help="an evaluation directory (evaluate.py --out), with episodes.csv")
+    p.add_argument(
+        "dir", type=Path, help="an evaluation directory (evaluate.py --out), with episodes.csv.gz or .csv"
+    )
     p.add_argument("--plot", type=Path, help="also draw the breakdown to this PNG")
     p.add_argument("--late-s", type=float, default=8.0, help="failures after this time count as late (s)")
     p.add_argument("--episodes", type=int, metavar="K", help="only Xi_eval's first K episodes (episode < K)")
-    p.add_argument(
-        "--probe-from", type=Path, metavar="DIR2", help="the probe's columns from DIR2/episodes.csv"
-    )
+    p.add_argument("--probe-from", type=Path, metavar="DIR2", help="the probe's columns from DIR2's episodes")
     p.add_argument(
         "--row", metavar="LABEL", help="print only docs/evaluation.md's row of this run, named LABEL"
     )
@@ -249,11 +250,11 @@ def main(argv=None) -> int:
     if args.episodes is not None and args.episodes < 1:
         p.error(f"--episodes must be >= 1, got {args.episodes}")
     try:
-        table = read_csv(args.dir / "episodes.csv")
+        table = read_csv(episodes_path(args.dir))
         if args.episodes is not None:
             table = first_episodes(table, args.episodes)
         if args.probe_from is not None:
-            table = with_probe_from(table, read_csv(args.probe_from / "episodes.csv"))
+            table = with_probe_from(table, read_csv(episodes_path(args.probe_from)))
     except EpisodesFileError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -262,7 +263,7 @@ def main(argv=None) -> int:
         try:
             print(summary_row(b, args.row))
         except ValueError as err:
-            print(f"error: {args.dir / 'episodes.csv'}: {err}", file=sys.stderr)
+            print(f"error: {episodes_path(args.dir)}: {err}", file=sys.stderr)
             return 2
     else:
         print(markdown(b))

@@ -11,15 +11,16 @@
              --torch-threads 1 (the policy's CPU threads) --no-platform-probe
     suite options: --robots-per-scenario R (default 64) --platform-drive close|paper --scenarios NAME ...
 
-Writes DIR/metrics.json (strict JSON: a missing value is null), DIR/metrics.md and DIR/episodes.csv
-(one row per episode: lasmp/eval/episodes.py; `python -m lasmp.eval.breakdown DIR` reads it; the
-suite's has one row per scenario and robot, with its initial heading: lasmp/eval/real_motion/suite.py).
-Definitions: lasmp/eval/metrics.py and docs/evaluation.md.
+Writes DIR/metrics.json (strict JSON: a missing value is null), DIR/metrics.md and DIR/episodes.csv.gz
+(gzip-compressed CSV, one row per episode: lasmp/eval/episodes.py; `python -m lasmp.eval.breakdown DIR`
+reads it; the suite's has one row per scenario and robot, with its initial heading:
+lasmp/eval/real_motion/suite.py), prints metrics.md and, last, one line naming DIR and the files
+written there. Definitions: lasmp/eval/metrics.py and docs/evaluation.md.
 
 The default DIR is eval/<controller> for Stand Still, else eval/<run directory>/<checkpoint stem>
 (plus _rs or _rs_oracle), so checkpoints of two runs never share one. A DIR that already holds a
 metrics.json is refused unless --force; an unwritable DIR fails before any episode is played.
-The platform probe (for episodes.csv's feasibility columns) replays every episode's platform
+The platform probe (for episodes.csv.gz's feasibility columns) replays every episode's platform
 motion in full, a second pass about as long as a Stand Still evaluation; --no-platform-probe
 leaves those columns empty.
 """
@@ -49,6 +50,7 @@ from lasmp.eval.run import run_benchmark
 
 DEFAULT_BENCHMARK = Path("benchmarks") / "xi_eval.npz"
 NUM_BATCHES = 10
+ESTIMATES_PLOT = "estimates.png"
 
 
 def eval_env_overrides(num_envs: int, seed: int, extra: dict | None = None) -> dict:
@@ -180,7 +182,7 @@ def main(argv=None, motions=None) -> int:
     p.add_argument(
         "--no-platform-probe",
         action="store_true",
-        help="skip the platform probe: episodes.csv's feasibility columns stay empty",
+        help="skip the platform probe: episodes.csv.gz's feasibility columns stay empty",
     )
     p.add_argument(
         "--plot-estimates", action="store_true", help="estimated vs true x_exp over episode 0 (PNG)"
@@ -260,16 +262,18 @@ def main(argv=None, motions=None) -> int:
         env, controller, bench, args.num_trajectories, policy=policy, trace=args.plot_estimates
     )
     episodes = run["episodes"]
+    written = [ep.EPISODES_FILE]
     mirror = None
     if args.mirror is not None:
         twins = MirroredBenchmark(bench, env.nominal_com_y_m, env.cfg.init_state)
         mirrored = run_benchmark(env, controller, twins, args.mirror)["episodes"]
-        ep.write_csv(out_dir / "episodes_mirror.csv", ep.episode_table(twins, mirrored, None))
+        ep.write_csv(out_dir / ep.MIRROR_EPISODES_FILE, ep.episode_table(twins, mirrored, None))
+        written.append(ep.MIRROR_EPISODES_FILE)
         mirror = mirror_report(episodes, mirrored)
     probe = None
     if not args.no_platform_probe:
         probe = ep.probe_platform(env.cfg, bench, args.num_trajectories, env.num_envs)
-    ep.write_csv(out_dir / "episodes.csv", ep.episode_table(bench, episodes, probe))
+    ep.write_csv(out_dir / ep.EPISODES_FILE, ep.episode_table(bench, episodes, probe))
     result = {
         "method": method,
         "benchmark": str(args.trajectories or args.benchmark),
@@ -289,13 +293,20 @@ def main(argv=None, motions=None) -> int:
     paper = paper_row(paper_key(args.controller, method))
     if paper is not None:
         result["paper"] = paper
-    write_results(out_dir, result)
+    written = [*write_results(out_dir, result), *written]
     if args.plot_estimates and run.get("trace") is not None and len(policy.estimation_names):
-        plot_estimates(run["trace"], policy.estimation_names, env.dt_s, out_dir / "estimates.png")
+        plot_estimates(run["trace"], policy.estimation_names, env.dt_s, out_dir / ESTIMATES_PLOT)
+        written.append(ESTIMATES_PLOT)
         result["estimates_plot_episode"] = run["trace"]["episode"]
         write_results(out_dir, result)
     print((out_dir / "metrics.md").read_text())
+    print(where_written(out_dir, written))
     return 0
+
+
+def where_written(out_dir: Path, names: list[str]) -> str:
+    """The last line evaluate.py prints: where its results are, for a reader who did not pass --out."""
+    return f"results in {out_dir}: {', '.join(names)}"
 
 
 class OutDirError(ValueError):
@@ -387,10 +398,11 @@ def run_suite(args, p, motions=None) -> int:
     if "estimator" in run:
         result["estimator"] = run["estimator"]
     ep.write_csv(
-        out_dir / "episodes.csv",
+        out_dir / ep.EPISODES_FILE,
         rm.episode_table(episodes, per_episode, env.cfg.init_state),
         rm.EPISODE_COLUMNS,
     )
-    write_results(out_dir, result, rm.markdown)
+    written = write_results(out_dir, result, rm.markdown)
     print((out_dir / "metrics.md").read_text())
+    print(where_written(out_dir, [*written, ep.EPISODES_FILE]))
     return 0

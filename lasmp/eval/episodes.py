@@ -1,4 +1,4 @@
-"""One record per benchmark episode (`episodes.csv`) and a physics bound on what any controller can do.
+"""One record per benchmark episode (`episodes.csv.gz`) and a physics bound on what any controller can do.
 
 A benchmark figure is a mean over episodes that differ wildly: a 4-waypoint drift and a 16-waypoint
 0.7 rad tumble count the same. The per-episode record says which episodes fail, and whether the
@@ -23,15 +23,19 @@ its motion is the evaluated episode's, and the same for every method). From that
   the platform, not a model of the robot, which can step, brace and lean.
 
 The CSV: a header row, then one row per episode in benchmark order; empty cells are "no value"
-(NaN: no counted step, no collision, no probe). `read_csv` reads it back, checked.
+(NaN: no counted step, no collision, no probe). evaluate.py writes it gzip-compressed (10,000 rows
+are 5 MB of text); records written before that are plain `episodes.csv`. `read_csv` reads either
+back, checked; `episodes_path` finds a directory's.
 """
 
 from __future__ import annotations
 
 import csv
+import gzip
 import io
 import sys
 import time
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -84,8 +88,24 @@ OPTIONAL_COLUMNS = GAIT_KEYS
 WRITTEN_COLUMNS = (*COLUMNS, *OPTIONAL_COLUMNS)
 
 
+# evaluate.py's per-episode records, gzip-compressed; older evaluation directories hold the plain .csv
+EPISODES_FILE = "episodes.csv.gz"
+MIRROR_EPISODES_FILE = "episodes_mirror.csv.gz"
+GZIP_MAGIC = b"\x1f\x8b"  # the first two bytes of every gzip file
+
+
 class EpisodesFileError(ValueError):
-    """An episodes.csv is missing or malformed; the message names the file and the problem."""
+    """An episodes file is missing or malformed; the message names the file and the problem."""
+
+
+def episodes_path(directory: str | Path) -> Path:
+    """An evaluation directory's record: its episodes.csv.gz, else the plain episodes.csv of an
+    evaluation made before evaluate.py compressed it; the .csv.gz when there is neither, so that
+    reading it names the file evaluate.py writes."""
+    directory = Path(directory)
+    plain = directory / EPISODES_FILE.removesuffix(".gz")
+    compressed = directory / EPISODES_FILE
+    return plain if plain.is_file() and not compressed.is_file() else compressed
 
 
 # -- the block ---------------------------------------------------------------------------------
@@ -314,7 +334,9 @@ def _cell(value) -> str:
 
 
 def write_csv(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...] = WRITTEN_COLUMNS) -> None:
-    """`table`'s `columns` (default: Xi_eval's) as CSV at `path`, atomically."""
+    """`table`'s `columns` (default: Xi_eval's) as CSV at `path`, atomically; gzip-compressed when
+    `path` ends in .gz, with no time stamp in the gzip header (mtime 0), so that a rerun that gives
+    the same table writes the same bytes."""
     text = io.StringIO()
     w = csv.writer(text, lineterminator="\n")
     w.writerow(columns)
@@ -323,20 +345,29 @@ def write_csv(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...]
     table = {**{c: np.full(n, np.nan) for c in OPTIONAL_COLUMNS}, **table}
     for i in range(n):
         w.writerow([_cell(table[c][i]) for c in columns])
-    with atomic_open(path, "w") as f:
-        f.write(text.getvalue())
+    data = text.getvalue().encode()
+    if Path(path).suffix == ".gz":
+        data = gzip.compress(data, compresslevel=9, mtime=0)
+    with atomic_open(path, "wb") as f:
+        f.write(data)
 
 
 def read_csv(path) -> dict[str, np.ndarray]:
-    """An episodes.csv as COLUMNS -> arrays (float, NaN for empty cells; text columns as str)."""
+    """An episodes file, plain or gzip-compressed CSV (told by its first two bytes or a .gz suffix),
+    as COLUMNS -> arrays (float, NaN for empty cells; text columns as str)."""
     path = Path(path)
     if not path.is_file():
         raise EpisodesFileError(f"{path}: no such file (evaluate.py writes it beside metrics.json)")
+    compressed = path.suffix == ".gz"
     try:
-        with open(path, newline="") as f:
+        with open(path, "rb") as f:
+            compressed = compressed or f.read(len(GZIP_MAGIC)) == GZIP_MAGIC
+        with (gzip.open if compressed else open)(path, "rt", newline="", encoding="utf-8") as f:
             rows = list(csv.reader(f))
-    except (OSError, UnicodeDecodeError, csv.Error) as err:
-        raise EpisodesFileError(f"{path}: unreadable as CSV ({err})") from None
+    # a truncated gzip stream raises EOFError, a corrupt one zlib.error or gzip.BadGzipFile (an OSError)
+    except (OSError, EOFError, zlib.error, UnicodeDecodeError, csv.Error) as err:
+        what = "gzip-compressed CSV" if compressed else "CSV"
+        raise EpisodesFileError(f"{path}: unreadable as {what} ({err})") from None
     if not rows:
         raise EpisodesFileError(f"{path}: empty (no header row)")
     header, body = rows[0], rows[1:]

@@ -108,10 +108,12 @@ def markdown(result: dict) -> str:
     return "\n".join(lines)
 
 
-def write_results(out_dir: Path, result: dict, render=markdown) -> None:
-    """`metrics.json` and `metrics.md` (from `render(result)`), each written atomically."""
+def write_results(out_dir: Path, result: dict, render=markdown) -> list[str]:
+    """`metrics.json` and `metrics.md` (from `render(result)`), each written atomically; their names,
+    for evaluate.py's closing line of what it wrote where."""
     atomic_write_text(out_dir / "metrics.json", dumps(result))
     atomic_write_text(out_dir / "metrics.md", render(result))
+    return ["metrics.json", "metrics.md"]
 
 
 def plot_estimates(trace: dict, names: tuple[str, ...], dt_s: float, path: Path) -> None:

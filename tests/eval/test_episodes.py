@@ -1,8 +1,10 @@
 """Per-episode records: the Coulomb-block feasibility bound on constructed platform motions, the
-episodes.csv round trip and its refusals, the breakdown, and the collision causes."""
+episodes file's round trip (plain and gzip-compressed) and its refusals, the breakdown, and the
+collision causes."""
 
 from __future__ import annotations
 
+import gzip
 import math
 
 import numpy as np
@@ -119,10 +121,23 @@ def table(k=6):
     return t
 
 
-def test_episodes_csv_round_trips_with_empty_cells_for_missing_values(tmp_path):
+def write(path):
+    """`table()` written to `path`; the path."""
+    ep.write_csv(path, table())
+    return path
+
+
+def text_of(path):
+    """An episodes file's CSV text, whether it is compressed or not."""
+    data = path.read_bytes()
+    return (gzip.decompress(data) if path.suffix == ".gz" else data).decode()
+
+
+@pytest.mark.parametrize("name", [ep.EPISODES_FILE, "episodes.csv"])
+def test_episodes_csv_round_trips_with_empty_cells_for_missing_values(tmp_path, name):
     t = table()
-    ep.write_csv(tmp_path / "episodes.csv", t)
-    back = ep.read_csv(tmp_path / "episodes.csv")
+    ep.write_csv(tmp_path / name, t)
+    back = ep.read_csv(tmp_path / name)
     assert list(back) == list(ep.WRITTEN_COLUMNS)
     for c in ep.OPTIONAL_COLUMNS:  # not in the table: written empty, read as NaN
         assert np.all(np.isnan(back[c])), c
@@ -131,9 +146,43 @@ def test_episodes_csv_round_trips_with_empty_cells_for_missing_values(tmp_path):
             assert list(back[c]) == list(t[c])
         else:
             np.testing.assert_array_equal(back[c], t[c].astype(float), err_msg=c)
-    assert (tmp_path / "episodes.csv").read_text().splitlines()[2].split(",")[
-        ep.COLUMNS.index("height_violation_rate")
-    ] == ""
+    assert (
+        text_of(tmp_path / name).splitlines()[2].split(",")[ep.COLUMNS.index("height_violation_rate")] == ""
+    )
+    assert ((tmp_path / name).read_bytes()[:2] == ep.GZIP_MAGIC) == name.endswith(".gz")
+
+
+def test_a_compressed_record_is_the_same_bytes_every_time_it_is_written(tmp_path):
+    """No time stamp in the gzip header (bytes 4-7, mtime): a rerun of an evaluation that plays the
+    same episodes leaves a results directory unchanged in git."""
+    first, second = tmp_path / "a" / ep.EPISODES_FILE, tmp_path / "b" / ep.EPISODES_FILE
+    ep.write_csv(first, table())
+    ep.write_csv(second, table())
+    assert first.read_bytes() == second.read_bytes() and first.read_bytes()[4:8] == bytes(4)
+
+
+def test_a_compressed_record_is_read_by_its_first_bytes_whatever_its_name(tmp_path):
+    named_plain = tmp_path / "episodes.csv"
+    named_plain.write_bytes(gzip.compress(text_of(write(tmp_path / "x.csv")).encode()))
+    np.testing.assert_array_equal(ep.read_csv(named_plain)["episode"], np.arange(6))
+
+
+@pytest.mark.parametrize(
+    "damage, problem",
+    [
+        (lambda b: b[: len(b) // 2], "Compressed file ended before the end-of-stream marker"),
+        (lambda b: b[:40] + bytes(40) + b[80:], "unreadable as gzip-compressed CSV"),  # corrupt data
+        (lambda b: b[:-8] + bytes(8), "CRC check failed"),  # the trailer's checksum and size
+        (lambda b: gzip.decompress(b), "Not a gzipped file"),  # plain text under a .gz name
+    ],
+)
+def test_a_damaged_compressed_record_names_the_file_and_the_problem_in_one_line(tmp_path, damage, problem):
+    path = write(tmp_path / ep.EPISODES_FILE)
+    path.write_bytes(damage(path.read_bytes()))
+    with pytest.raises(ep.EpisodesFileError) as err:
+        ep.read_csv(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: unreadable as ") and problem in message and "\n" not in message
 
 
 def test_reading_a_missing_or_corrupt_episodes_csv_names_the_file_and_the_problem(tmp_path):
@@ -204,12 +253,23 @@ def test_breakdown_without_probe_columns_says_so():
 
 
 def test_breakdown_command_prints_and_plots_and_fails_clearly_on_a_missing_csv(tmp_path, capsys):
-    ep.write_csv(tmp_path / "episodes.csv", table())
+    ep.write_csv(tmp_path / ep.EPISODES_FILE, table())
     assert bd.main([str(tmp_path), "--plot", str(tmp_path / "b.png")]) == 0
     assert "By number of waypoints N" in capsys.readouterr().out
     assert (tmp_path / "b.png").stat().st_size > 5_000
     assert bd.main([str(tmp_path / "nowhere")]) == 2
-    assert "nowhere/episodes.csv: no such file" in capsys.readouterr().err
+    assert "nowhere/episodes.csv.gz: no such file" in capsys.readouterr().err
+
+
+def test_an_evaluation_directory_s_record_is_its_csv_gz_else_the_plain_csv_of_an_older_evaluation(
+    tmp_path, capsys
+):
+    ep.write_csv(tmp_path / "episodes.csv", {c: v[:4] for c, v in table().items()})
+    assert ep.episodes_path(tmp_path) == tmp_path / "episodes.csv"
+    assert bd.main([str(tmp_path)]) == 0 and capsys.readouterr().out.startswith("4 episodes")
+    ep.write_csv(tmp_path / ep.EPISODES_FILE, table())
+    assert ep.episodes_path(tmp_path) == tmp_path / ep.EPISODES_FILE
+    assert bd.main([str(tmp_path)]) == 0 and capsys.readouterr().out.startswith("6 episodes")
 
 
 def test_breakdown_of_the_first_k_episodes_counts_only_those_and_refuses_a_k_the_file_lacks(tmp_path, capsys):

@@ -241,7 +241,7 @@ def test_evaluate_stand_still_end_to_end(tmp_path):
     assert result["metrics"]["power_w"]["mean"] > 0.0  # the PD does work against the platform's motion
     assert set(result["metrics"]) == set(ALL_METRICS) and result["h_des_p_m"] == pytest.approx(0.47)
     assert "| collision rate |" in (tmp_path / "ev" / "metrics.md").read_text()
-    rows = ep.read_csv(tmp_path / "ev" / "episodes.csv")  # one row per episode, in benchmark order
+    rows = ep.read_csv(tmp_path / "ev" / ep.EPISODES_FILE)  # one row per episode, in benchmark order
     np.testing.assert_array_equal(rows["episode"], np.arange(16))
     assert set(np.unique(rows["collided"])) <= {0.0, 1.0}
     collided = rows["collided"] > 0
@@ -289,7 +289,21 @@ def test_evaluate_refuses_an_earlier_result_before_playing_unless_forced(tmp_pat
     assert out.returncode == 0, out.stderr[-2000:]
     result = strict_load(out_dir / "metrics.json")  # strict JSON: null, never NaN
     assert result["num_episodes"] == 2 and result["forced_episodes"] is None
-    assert np.isnan(ep.read_csv(out_dir / "episodes.csv")["forced"]).all()  # no probe: empty cells
+    assert np.isnan(ep.read_csv(out_dir / ep.EPISODES_FILE)["forced"]).all()  # no probe: empty cells
+    assert out.stdout.splitlines()[-1] == f"results in {out_dir}: metrics.json, metrics.md, episodes.csv.gz"
+
+
+def test_evaluate_says_last_where_it_wrote_its_results_and_git_ignores_the_default_place(tmp_path):
+    """Without --out the results land in eval/<controller> of the working directory: the last line
+    printed names it and every file written there, and the repository's .gitignore keeps it out of
+    git (tests/test_repository.py checks the pattern against the package's own eval/ folders)."""
+    bench = tiny_benchmark(tmp_path)
+    out = run_evaluate(*STAND_STILL_2, "--benchmark", str(bench), "--no-platform-probe", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    where, names = out.stdout.splitlines()[-1].removeprefix("results in ").split(": ")
+    assert Path(where) == Path("eval") / "stand_still"
+    assert names.split(", ") == ["metrics.json", "metrics.md", ep.EPISODES_FILE]
+    assert sorted(p.name for p in (tmp_path / where).iterdir()) == sorted(names.split(", "))
 
 
 def test_evaluate_fails_at_once_on_an_unwritable_output_directory(tmp_path):
@@ -376,7 +390,7 @@ def test_oracle_command_points_to_the_platform_centre_in_the_heading_frame():
     from lasmp.config import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
-    from lasmp.envs.moving_platform.readout import read
+    from lasmp.envs.moving_platform.readout import read_scene
     from lasmp.eval.cli import oracle_command
 
     env = MovingPlatformEnv(
@@ -390,7 +404,7 @@ def test_oracle_command_points_to_the_platform_centre_in_the_heading_frame():
     env.sim.qpos[0, ix.root_qpos] = 0.5  # 0.5 m along world +x of the centre: the centre is on its left
     env.sim.qpos[1, ix.root_qpos] = 3.0  # far away: the command saturates
     env.sim.forward()
-    env.readout = read(env.sim, ix)
+    env.readout = read_scene(env.sim, ix)
     cmd = oracle_command(env).numpy()
     assert np.allclose(cmd[0], [0.0, 0.5, 0.0], atol=1e-6)
     assert np.allclose(cmd[1], [0.0, 1.0, 0.0], atol=1e-6)

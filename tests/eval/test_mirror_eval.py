@@ -34,13 +34,16 @@ def test_stand_still_fails_the_same_episodes_as_their_mirror_twins_on_the_mirror
     assert report["failure_overlap"] == 1.0
     assert report["mirrored_legs_as_original"] == report["original_legs"]
     assert report["original_legs"] != report["mirrored_legs"]  # the twins fail on the other side
-    original = ep.read_csv(tmp_path / "ev" / "episodes.csv")
-    twins = ep.read_csv(tmp_path / "ev" / "episodes_mirror.csv")
+    original = ep.read_csv(tmp_path / "ev" / ep.EPISODES_FILE)
+    twins = ep.read_csv(tmp_path / "ev" / ep.MIRROR_EPISODES_FILE)
     np.testing.assert_array_equal(twins["collision_time_s"], original["collision_time_s"][:24])
     np.testing.assert_allclose(
         twins["com_shift_y_m"], -original["com_shift_y_m"][:24] - 2 * 0.002186, atol=1e-12
     )
     assert "Mirror evaluation" in (tmp_path / "ev" / "metrics.md").read_text()
+    assert out.stdout.splitlines()[-1].endswith(
+        ": metrics.json, metrics.md, episodes.csv.gz, episodes_mirror.csv.gz"
+    )
 
 
 def test_a_mirror_outside_the_episodes_played_is_refused_before_any_episode(tmp_path):

@@ -1,6 +1,7 @@
 """The real-motion suite: scenarios, episodes, the platform drive, the evaluate.py and module CLIs."""
 
 import csv
+import gzip
 import json
 from pathlib import Path
 
@@ -135,7 +136,8 @@ def test_evaluate_suite_end_to_end(tmp_path, small_bench, capsys):
         assert s["mean_episode_steps"] <= DEFAULT_DURATION_S / 0.02 + 1
         assert result["platform_tracking"][name]["reference_acc_rms_mps2"] > 0.0
         assert result["reference_motion"][name]["acc_max_mps2"] > 0.0
-    rows = list(csv.DictReader((out / "episodes.csv").open()))
+    with gzip.open(out / "episodes.csv.gz", "rt", newline="") as f:
+        rows = list(csv.DictReader(f))
     assert [(r["scenario"], r["robot"]) for r in rows] == [(n, str(i)) for n in QUICK for i in range(2)]
     init = MovingPlatformCfg().init_state
     lo, hi = init.yaw_range_rad
@@ -151,7 +153,10 @@ def test_evaluate_suite_end_to_end(tmp_path, small_bench, capsys):
     assert all(bool(r["collision_cause"]) == (r["collision"] == "1") for r in rows)
     md = (out / "metrics.md").read_text()
     assert "| lift_up |" in md and "| bus_emergency_brake |" in md and "How the platform followed" in md
-    capsys.readouterr()
+    assert (
+        capsys.readouterr().out.splitlines()[-1]
+        == f"results in {out}: metrics.json, metrics.md, episodes.csv.gz"
+    )
     assert suite_main(["table", str(out), str(out), "--labels", "A", "B"]) == 0
     table = capsys.readouterr().out
     lift = result["scenarios"]["lift_up"]["metrics"]

@@ -2,12 +2,15 @@
 # Copy the screening results into results/screen/ (light: metrics, gzipped episode records, policy checkpoints)
 cd "$(dirname "$0")/.."
 . .venv/bin/activate
+# an evaluation's record $1 (a path without .csv/.csv.gz) to $2, gzip-compressed: evaluate.py writes
+# the .csv.gz itself since issue 43, the plain .csv before
+record() { if [ -e $1.csv.gz ]; then cp $1.csv.gz $2; else gzip -n -9 -c $1.csv > $2; fi; }
 for d in runs/screen/*/seed*.done; do
   cand=$(basename $(dirname $d)); s=$(basename $d .done); src=runs/screen/$cand/$s; out=results/screen/$cand/$s
   [ -e $src.eval2000/metrics.json ] || continue
   mkdir -p $out
   cp $src.eval2000/metrics.json $out/metrics_2000.json; cp $src.eval2000/metrics.md $out/metrics_2000.md
-  gzip -c $src.eval2000/episodes.csv > $out/episodes_2000.csv.gz
+  record $src.eval2000/episodes $out/episodes_2000.csv.gz
   cp $src/config.yaml $out/config.yaml; cp $src.commands $out/commands.txt
   [ -e $out/policy_449.pt ] || python -m lasmp.algo.checkpoint policy $src/model_449.pt $out/policy_449.pt > /dev/null
 done
@@ -15,6 +18,6 @@ for m in runs/screen/mirror/*/seed*; do
   [ -e $m/metrics.json ] || continue
   out=results/screen/$(basename $(dirname $m))/$(basename $m); mkdir -p $out
   cp $m/metrics.json $out/mirror_1024.json; cp $m/metrics.md $out/mirror_1024.md
-  gzip -c $m/episodes.csv > $out/episodes_1024.csv.gz; gzip -c $m/episodes_mirror.csv > $out/episodes_mirror_1024.csv.gz
+  record $m/episodes $out/episodes_1024.csv.gz; record $m/episodes_mirror $out/episodes_mirror_1024.csv.gz
 done
 cp runs/mirror.commands results/screen/mirror.commands

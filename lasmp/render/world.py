@@ -1,6 +1,6 @@
 """The visual-only world for rendering: ground grid, sky, lights and reference pillars.
 
-The physics model of a task (`lasmp.envs.moving_platform.scene` / `lasmp.envs.rough_static.terrain`) is a robot
+The physics model of a task (`lasmp.envs.moving_platform.scene` / `lasmp.envs.rough_static.scene`) is a robot
 and a platform (or a heightfield) in an empty world, tuned for stepping speed. To make the
 platform's motion visible, rendering uses a second model: the same `MjSpec` plus decorations
 that change nothing physical:
@@ -174,7 +174,7 @@ def physics_spec(env) -> tuple[mujoco.MjSpec, WorldLayout]:
 
         return build_spec(cfg.platform, cfg.sim), platform_layout(cfg.platform.size_m)
     if isinstance(env, RoughStaticEnv):
-        from lasmp.envs.rough_static.terrain import build_spec
+        from lasmp.envs.rough_static.scene import build_spec
 
         spec, hf = build_spec(cfg.terrain, cfg.sim)
         return spec, terrain_layout(hf.half_x_m, hf.half_y_m)

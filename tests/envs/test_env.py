@@ -116,9 +116,9 @@ def test_yawed_robot_sees_platform_velocity_in_its_own_frame():
     sim.qpos[0, ix.root_qpos + 3 : ix.root_qpos + 7] = quat
     sim.qvel[0, env.sim.model.joint("plf_x").dofadr[0]] = 1.0
     sim.forward()
-    from lasmp.envs.moving_platform.readout import read
+    from lasmp.envs.moving_platform.readout import read_scene
 
-    r = as_numpy(read(sim, ix))
+    r = as_numpy(read_scene(sim, ix))
     # world +x is the body's -y when the body faces world +y
     assert np.allclose(r.v_plf_b[0], [0.0, -1.0, 0.0], atol=1e-9), r.v_plf_b
     # the robot is at rest: it must speed up along body -y to move with the platform
@@ -141,9 +141,9 @@ def test_foot_contacts_match_contact_forces():
     # lift the robot off: no contact, zero force
     env.sim.qpos[:, env.index.root_qpos + 2] += 0.3
     env.sim.forward()
-    from lasmp.envs.moving_platform.readout import read
+    from lasmp.envs.moving_platform.readout import read_scene
 
-    r = as_numpy(read(env.sim, env.index))
+    r = as_numpy(read_scene(env.sim, env.index))
     assert not r.foot_contact.any() and np.all(r.f_feet_w == 0.0)
 
 
@@ -313,6 +313,20 @@ def test_curriculum_state_round_trips_through_the_env():
     other = make(2)
     other.load_state_dict(state)
     assert other.curriculum.level == 9
+
+
+def test_a_checkpoint_holding_the_readout_under_its_former_name_resumes_exactly():
+    """Checkpoints written before the readout was named `SceneReadout` hold it as a `Readout`."""
+    env = make(2)
+    env.step(torch.zeros(2, 12))
+    saved = env.state_dict()
+    saved["run"]["attrs"]["readout"]["class"] = "Readout"
+    resumed = make(2, seed=1)
+    assert resumed.load_state_dict(saved)
+    resumed.rng.bit_generator.state = env.rng.bit_generator.state  # the runner restores it alike
+    for _ in range(5):
+        actions = 0.3 * torch.randn(2, 12, generator=torch.Generator().manual_seed(0))
+        assert torch.equal(env.step(actions)[0]["critic"], resumed.step(actions)[0]["critic"])
 
 
 def test_actions_of_wrong_shape_or_nan_are_refused():

@@ -13,7 +13,7 @@ from lasmp.config import build_env_cfg
 from lasmp.envs.moving_platform import env as moving_platform_env
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
-from lasmp.envs.moving_platform.readout import Readout, read
+from lasmp.envs.moving_platform.readout import SceneReadout, read_scene
 from lasmp.envs.robot import (
     OBS_DIM,
     as_slice,
@@ -43,7 +43,7 @@ def envs() -> tuple[MovingPlatformEnv, RoughStaticEnv]:
 
 def test_screen_faults_returns_the_faulted_envs_and_leaves_its_input_alone(envs):
     mp, _ = envs
-    r = read(mp.sim, mp.index)  # a task's readout: the robot's fields and the platform's
+    r = read_scene(mp.sim, mp.index)  # a task's readout: the robot's fields and the platform's
     r.q_dot[0, 3] = np.nan  # env 0: a non-finite robot state
     r.v_plf_b[1, 0] = np.inf  # env 1: a non-finite platform quantity
     r.q_dot[2, 5] = 2.0 * MAX_JOINT_VEL_RAD_S  # env 2: a runaway joint, still finite
@@ -54,7 +54,7 @@ def test_screen_faults_returns_the_faulted_envs_and_leaves_its_input_alone(envs)
     assert faulted.tolist() == [True, True, True, False]
     for name, value in vars(before).items():
         np.testing.assert_array_equal(getattr(r, name), value, err_msg=name)  # NaNs compare equal
-    assert isinstance(clean, Readout)
+    assert isinstance(clean, SceneReadout)
     assert all(np.isfinite(value).all() for value in vars(clean).values())
     assert clean.q_dot[0, 3] == 0.0 and clean.v_plf_b[1, 0] == 0.0
     assert clean.q_dot[2, 5] == 2.0 * MAX_JOINT_VEL_RAD_S  # finite values are kept

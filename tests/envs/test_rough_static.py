@@ -15,7 +15,8 @@ from lasmp.envs.robot import read_robot
 from lasmp.envs.rough_static import rewards as rw
 from lasmp.envs.rough_static.cfg import RoughStaticCfg
 from lasmp.envs.rough_static.env import RoughStaticEnv
-from lasmp.envs.rough_static.terrain import HFIELD_NAME
+from lasmp.envs.rough_static.scene import HFIELD_NAME
+from lasmp.envs.rough_static.state import StepState
 from lasmp.plainstate import pack
 from lasmp.robots import a1
 
@@ -119,7 +120,7 @@ def test_commands_are_resampled_on_schedule_and_a_fifth_are_zero():
     assert np.abs(cmd[~zero, 2]).max() > 0.9
 
 
-def _state(**kw) -> rw.RoughStepState:
+def _state(**kw) -> StepState:
     n = 1
     base = dict(
         dt_s=0.02,
@@ -137,11 +138,11 @@ def _state(**kw) -> rw.RoughStepState:
         t_air_s=torch.zeros(n, 4),
     )
     base.update(kw)
-    return rw.RoughStepState(**base)
+    return StepState(**base)
 
 
-def _total(s: rw.RoughStepState, term: str) -> float:
-    m = RewardManager(rw.REWARD_TERMS, {term: rw.DEFAULT_REWARD_WEIGHTS[term]}, rw.RoughRewardsCfg(), 1)
+def _total(s: StepState, term: str) -> float:
+    m = RewardManager(rw.REWARD_TERMS, {term: rw.DEFAULT_REWARD_WEIGHTS[term]}, rw.RewardsCfg(), 1)
     return float(m.compute(s)[0])
 
 
@@ -234,10 +235,12 @@ def test_same_seed_gives_identical_observations():
 
 def test_a_checkpoint_whose_robots_carry_platform_factors_resumes_exactly():
     """R-S checkpoints written while the robot layer drew the platform's gain factors for both tasks
-    hold the robots as `Intrinsics`, with those factors: they resume, and the episodes go on alike."""
+    hold the robots as `Intrinsics`, with those factors, and the step state as a `RoughStepState`: they
+    resume, and the episodes go on alike."""
     env = make(3)
     env.step(zeros(env))
     saved = env.state_dict()
+    saved["run"]["attrs"]["last_state"]["class"] = "RoughStepState"
     intrinsics = saved["run"]["attrs"]["intrinsics"]
     intrinsics["class"] = "Intrinsics"  # the older form: the robot's fields, then the platform's
     intrinsics["fields"].update(

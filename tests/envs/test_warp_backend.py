@@ -312,7 +312,7 @@ def test_missing_mujoco_warp_names_the_gpu_extra(model, monkeypatch):
 
 def test_rough_terrain_steps():
     from lasmp.envs.rough_static.cfg import TerrainCfg
-    from lasmp.envs.rough_static.terrain import build_model as build_terrain
+    from lasmp.envs.rough_static.scene import build_model as build_terrain
 
     model, field = build_terrain(TerrainCfg(), SIM)
     tix = RobotIndex(model)

@@ -29,7 +29,7 @@ from lasmp.envs.moving_platform.domain_rand import (
     sample_intrinsics,
 )
 from lasmp.envs.moving_platform.mirror import ACTIONS, ObservationMirror, nominal_com_y_m
-from lasmp.envs.moving_platform.readout import Readout, ReadoutIndex, read
+from lasmp.envs.moving_platform.readout import SceneIndex, SceneReadout, read_scene
 from lasmp.envs.moving_platform.rewards import REWARD_TERMS
 from lasmp.envs.moving_platform.scene import (
     POSE_TO_JOINT,
@@ -73,7 +73,7 @@ class MovingPlatformEnv(BaseEnv):
         model = build_model(cfg.platform, cfg.sim)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
         episode_s = cfg.trajectory.duration_s + cfg.trajectory.hold_s  # the reference holds after T
-        super().__init__(cfg, model, 12, int(round(episode_s / dt_s)), device, index_class=ReadoutIndex)
+        super().__init__(cfg, model, 12, int(round(episode_s / dt_s)), device, index_class=SceneIndex)
         n, dev = self.num_envs, self.device
         self.gains = platform_gains(cfg.platform)
         plf_act_pos, plf_act_vel = platform_actuator_ids(model)
@@ -134,7 +134,7 @@ class MovingPlatformEnv(BaseEnv):
         self.t_air_s = zeros(4)
         self.t_contact_s = zeros(4)
         self.nonfinite_obs_values = 0  # replaced by 0 in the last observation (a fault symptom)
-        self.readout: Readout | None = None
+        self.readout: SceneReadout | None = None
         # Hooks for evaluation: `episode_source.next_episodes(ids)` (host ids) -> (trajectories,
         # levels, Intrinsics, (n, 3) initial-pose uniforms) replaces the random draws at reset; `on_step(readout, collision)` sees
         # every step's state (tensors) before the finished envs are reset.
@@ -177,14 +177,14 @@ class MovingPlatformEnv(BaseEnv):
         ctrl[:, self._plf_pos_ctrl] = (x_next - self.sim.act[:, self._plf_act]) / dt
 
     # -- evaluation ----------------------------------------------------------------------------
-    def _fell(self, r: Readout) -> torch.Tensor:
+    def _fell(self, r: SceneReadout) -> torch.Tensor:
         tc = self.cfg.termination
         off = (torch.abs(r.p_body_p[:, :2]) > self.plf_half_xy_m + tc.footprint_margin_m).any(dim=1)
         below = r.p_body_p[:, 2] < self.plf_top_m + tc.fall_below_top_m
         return off | below
 
     def _evaluate(self):
-        r, faulted = screen_faults(read(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
+        r, faulted = screen_faults(read_scene(self.sim, self.index), self.cfg.termination.max_joint_vel_rad_s)
         self.readout = r
         fell = self._fell(r)
         collision = r.body_collision | fell
@@ -313,9 +313,9 @@ class MovingPlatformEnv(BaseEnv):
     def _observations(self) -> TensorDict:
         # the readout of this step, with the envs reset since then read again (their new state)
         if self.readout is None or (self._fresh is not None and len(self._fresh) == self.num_envs):
-            self.readout = read(self.sim, self.index)
+            self.readout = read_scene(self.sim, self.index)
         elif self._fresh is not None:
-            update_rows(self.readout, self._fresh, read(self.sim, self.index, self._fresh))
+            update_rows(self.readout, self._fresh, read_scene(self.sim, self.index, self._fresh))
         r = self.readout
         o = proprioception(r, self.action, self.q_nominal)
         critic = torch.cat(
@@ -351,7 +351,15 @@ class MovingPlatformEnv(BaseEnv):
         "readout",
         "last_state",
     )
-    RUN_STATE_CLASSES = (StepState, Readout)
+    RUN_STATE_CLASSES = (StepState, SceneReadout)
+
+    def _upgrade_run_state(self, attrs: dict) -> dict:
+        """A checkpoint written before the readout was named for the scene it reads holds it as a
+        `Readout`: the same fields."""
+        readout = attrs.get("readout")
+        if isinstance(readout, dict) and readout.get("class") == "Readout":
+            attrs = {**attrs, "readout": {**readout, "class": "SceneReadout"}}
+        return attrs
 
     def _task_state(self) -> dict:
         return {"curriculum": self.curriculum.state_dict() if self.curriculum is not None else None}

@@ -1,5 +1,7 @@
-"""Turns the batch's raw arrays into the named physical quantities of SPEC §1 and §7: the robot's
-(`lasmp.envs.robot`) and the platform's, relative to each other.
+"""Reads the task's scene (`scene.py`: the robot on its platform) from the batch's raw arrays into the
+named physical quantities of SPEC §1 and §7: `read_scene` -> `SceneReadout`, the robot's (`read_robot`
+-> `RobotReadout` of `lasmp.envs.robot`) and the platform's, relative to each other, at the addresses
+of `SceneIndex` (the robot's `RobotIndex` and the platform's).
 
 Everything here is torch, on the backend's device and dtype, (num_envs, ...). Frames: `w` world, `p` platform (origin at
 the platform's CoM = its geometric centre), `b` trunk (as in `lasmp.envs.robot`: origin at the
@@ -28,7 +30,7 @@ from lasmp.robots import a1
 
 
 @dataclass
-class Readout(RobotReadout):
+class SceneReadout(RobotReadout):
     p_plf_w: torch.Tensor  # (n, 3)
     r_wp: torch.Tensor  # (n, 3, 3)
     v_plf_w: torch.Tensor  # (n, 3) platform CoM velocity
@@ -40,7 +42,7 @@ class Readout(RobotReadout):
     v_slip_p: torch.Tensor  # (n, 4, 2) foot velocity relative to the platform surface point under it, xy in p
 
 
-class ReadoutIndex(RobotIndex):
+class SceneIndex(RobotIndex):
     """The robot's addresses and the platform's, in qpos and sensordata (computed once)."""
 
     def __init__(self, model: mujoco.MjModel, device: torch.device | str = "cpu"):
@@ -56,7 +58,7 @@ class ReadoutIndex(RobotIndex):
         self.foot_linvel_cols = as_slice(self.foot_linvel.flatten())
 
 
-def read(sim, ix: ReadoutIndex, rows: torch.Tensor | None = None) -> Readout:
+def read_scene(sim, ix: SceneIndex, rows: torch.Tensor | None = None) -> SceneReadout:
     """The quantities of all envs, or of envs `rows` only (in that order)."""
     robot = read_robot(sim, ix, rows)
     qpos, sd, site_xpos = sim.qpos, sim.sensordata, sim.site_xpos
@@ -84,7 +86,7 @@ def read(sim, ix: ReadoutIndex, rows: torch.Tensor | None = None) -> Readout:
     )
     v_slip_p = rotate_inv(r_wp, v_feet_w - v_surface_w)[:, :, :2]
 
-    return Readout(
+    return SceneReadout(
         **vars(robot),
         p_plf_w=p_plf_w,
         r_wp=r_wp,

@@ -2,7 +2,7 @@
 (terrain, commands, pushes, rewards, termination), on top of the shared `lasmp.config.BaseEnvCfg`.
 
 Hydra registers it as the `env` option `rough_static` (`lasmp/train_cfg.py`, from the task registry
-`lasmp/envs/registry.py`). The rewards' entry, `RoughRewardsCfg`, lives with the terms that read it
+`lasmp/envs/registry.py`). The rewards' entry, `RewardsCfg`, lives with the terms that read it
 (`rewards.py`). This module never imports the env: `lasmp.envs.rough_static.env` imports it.
 """
 
@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass, field
 
 from lasmp.config import BaseEnvCfg, ConfigError, check_positive, check_range
-from lasmp.envs.rough_static.rewards import RoughRewardsCfg
+from lasmp.envs.rough_static.rewards import RewardsCfg
 
 
 @dataclass
@@ -82,7 +82,7 @@ class PushCfg:
 
 
 @dataclass
-class RoughTerminationCfg:
+class TerminationCfg:
     max_tilt_rad: float = 1.0  # |roll| or |pitch| beyond this ends the episode (a fall)
     max_joint_vel_rad_s: float = 200.0  # beyond this the simulation is considered diverged (a fault)
 
@@ -97,8 +97,8 @@ class RoughStaticCfg(BaseEnvCfg):
     terrain: TerrainCfg = field(default_factory=TerrainCfg)
     commands: CommandsCfg = field(default_factory=CommandsCfg)
     pushes: PushCfg = field(default_factory=PushCfg)
-    rewards: RoughRewardsCfg = field(default_factory=RoughRewardsCfg)
-    termination: RoughTerminationCfg = field(default_factory=RoughTerminationCfg)
+    rewards: RewardsCfg = field(default_factory=RewardsCfg)
+    termination: TerminationCfg = field(default_factory=TerminationCfg)
 
     def validate(self, p: str = "env"):
         check_positive(f"{p}.episode_length_s", self.episode_length_s)

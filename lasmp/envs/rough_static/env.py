@@ -46,7 +46,8 @@ from lasmp.envs.robot import (
 )
 from lasmp.envs.rough_static import rewards as rw
 from lasmp.envs.rough_static.cfg import RoughStaticCfg
-from lasmp.envs.rough_static.terrain import build_model
+from lasmp.envs.rough_static.scene import build_model
+from lasmp.envs.rough_static.state import StepState
 
 SPAWN_FOOTPRINT_M = 0.4  # half-side of the square under the robot searched for the highest ground
 
@@ -82,7 +83,7 @@ class RoughStaticEnv(BaseEnv):
         self.contact_prev = torch.zeros((n, 4), dtype=torch.bool, device=dev)
         self.t_air_s = zeros(4)
         self.readout: RobotReadout | None = None
-        self.last_state: rw.RoughStepState | None = None
+        self.last_state: StepState | None = None
 
     # -- commands and pushes -------------------------------------------------------------------
     def sample_commands(self, n: int) -> np.ndarray:
@@ -132,7 +133,7 @@ class RoughStaticEnv(BaseEnv):
         dt = self.dt_s
         gait = step_gait_phase(r.foot_contact, self.contact_prev, self.t_air_s, None, dt)
         f32 = torch.float32  # rewards are computed in float32 on every backend
-        state = rw.RoughStepState(
+        state = StepState(
             dt_s=dt,
             v_body_b=r.v_body_b.to(f32),
             omega_body_b=r.omega_body_b.to(f32),
@@ -239,13 +240,16 @@ class RoughStaticEnv(BaseEnv):
         "readout",
         "last_state",
     )
-    RUN_STATE_CLASSES = (rw.RoughStepState, RobotReadout)
+    RUN_STATE_CLASSES = (StepState, RobotReadout)
 
     def _upgrade_run_state(self, attrs: dict) -> dict:
         """A checkpoint written while the robot layer drew the platform's gain factors holds the
         robots as `Intrinsics`, with those factors, which the R-S baseline never used: they are
-        dropped, and the robots read back as the `RobotIntrinsics` they are."""
-        intrinsics = attrs.get("intrinsics")
+        dropped, and the robots read back as the `RobotIntrinsics` they are. Its step state is
+        named `RoughStepState`, as the class was then."""
+        state, intrinsics = attrs.get("last_state"), attrs.get("intrinsics")
+        if isinstance(state, dict) and state.get("class") == "RoughStepState":
+            attrs = {**attrs, "last_state": {**state, "class": "StepState"}}
         if isinstance(intrinsics, dict) and intrinsics.get("class") == "Intrinsics":
             fields = {k: v for k, v in intrinsics["fields"].items() if not k.startswith("platform_")}
             attrs = {**attrs, "intrinsics": {**intrinsics, "class": "RobotIntrinsics", "fields": fields}}

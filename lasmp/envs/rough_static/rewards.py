@@ -1,6 +1,6 @@
 """Reward terms of the R-S baseline (locomotion on static rough terrain), legged_gym-style.
 
-A registry of small pure functions and their config entry `RoughRewardsCfg` (the weights and
+A registry of small pure functions and their config entry `RewardsCfg` (the weights and
 the terms' shape parameters, declared once: the terms read it), summed and logged per episode
 by the shared `lasmp.envs.rewards.RewardManager`. Each term returns its UNWEIGHTED value
 (num_envs,); the sign lives in the weight; every weighted term is multiplied by dt_s in the
@@ -33,54 +33,35 @@ import torch
 
 from lasmp.config import check_positive
 from lasmp.envs import rewards as shared
+from lasmp.envs.rough_static.state import StepState
 
-
-@dataclass
-class RoughStepState:
-    """Per-step quantities the terms read; (n, ...) float32 tensors unless noted, SI units."""
-
-    dt_s: float
-    v_body_b: torch.Tensor  # (n, 3) trunk velocity, body frame, m/s
-    omega_body_b: torch.Tensor  # (n, 3) trunk angular velocity, body frame, rad/s
-    command: torch.Tensor  # (n, 3) [v_x, v_y, w_z] command, body frame
-    gravity_b: torch.Tensor  # (n, 3) unit gravity direction in the body frame
-    q_dev: torch.Tensor  # (n, 12) q - q_nominal, rad
-    tau: torch.Tensor  # (n, 12) N·m
-    q_ddot: torch.Tensor  # (n, 12) rad/s²
-    action: torch.Tensor  # (n, 12)
-    action_prev: torch.Tensor  # (n, 12)
-    body_contact: torch.Tensor  # (n,) bool
-    touchdown: torch.Tensor  # (n, 4) bool, foot made contact this step
-    t_air_s: torch.Tensor  # (n, 4) length of the air phase that ended at touchdown, s
-
-
-REWARD_TERMS, reward_term = shared.make_registry()  # name -> fn(RoughStepState, RoughRewardsCfg)
+REWARD_TERMS, reward_term = shared.make_registry()  # name -> fn(StepState, RewardsCfg)
 
 
 _sq = shared.squared_norm
 
 
-def _moving(s: RoughStepState) -> torch.Tensor:
+def _moving(s: StepState) -> torch.Tensor:
     return torch.any(s.command != 0, dim=-1).to(s.v_body_b.dtype)
 
 
 @reward_term
-def track_lin_vel_xy(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+def track_lin_vel_xy(s: StepState, c: RewardsCfg) -> torch.Tensor:
     return torch.exp(-_sq(s.command[:, :2] - s.v_body_b[:, :2]) / c.tracking_sigma)
 
 
 @reward_term
-def track_ang_vel_z(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+def track_ang_vel_z(s: StepState, c: RewardsCfg) -> torch.Tensor:
     return torch.exp(-torch.square(s.command[:, 2] - s.omega_body_b[:, 2]) / c.tracking_sigma)
 
 
 @reward_term
-def lin_vel_z(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+def lin_vel_z(s: StepState, c: RewardsCfg) -> torch.Tensor:
     return torch.square(s.v_body_b[:, 2])
 
 
 @reward_term
-def ang_vel_xy(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+def ang_vel_xy(s: StepState, c: RewardsCfg) -> torch.Tensor:
     return _sq(s.omega_body_b[:, :2])
 
 
@@ -90,23 +71,23 @@ action_rate = reward_term(shared.action_rate_sq, "action_rate")
 
 
 @reward_term
-def body_contact(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+def body_contact(s: StepState, c: RewardsCfg) -> torch.Tensor:
     return s.body_contact.to(s.v_body_b.dtype)
 
 
 @reward_term
-def orientation(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+def orientation(s: StepState, c: RewardsCfg) -> torch.Tensor:
     return _sq(s.gravity_b[:, :2])
 
 
 @reward_term
-def feet_air_time(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+def feet_air_time(s: StepState, c: RewardsCfg) -> torch.Tensor:
     paid = s.touchdown.to(s.t_air_s.dtype) * (s.t_air_s - c.air_time_target_s)
     return torch.sum(paid, dim=-1) * _moving(s)
 
 
 @reward_term
-def stand_still(s: RoughStepState, c: RoughRewardsCfg) -> torch.Tensor:
+def stand_still(s: StepState, c: RewardsCfg) -> torch.Tensor:
     return torch.sum(torch.abs(s.q_dev), dim=-1) * (1.0 - _moving(s))
 
 
@@ -126,7 +107,7 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
 
 
 @dataclass
-class RoughRewardsCfg:
+class RewardsCfg:
     """`env.rewards`: a weight per term (0 skips it) and the terms' shape parameters."""
 
     weights: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_REWARD_WEIGHTS))

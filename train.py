@@ -4,14 +4,20 @@ See cfg/config.yaml for the groups and lasmp/train_cfg.py for every key; lasmp/t
 directories and resume.
 """
 
+import sys
+from pathlib import Path
+
 import hydra
 
+from lasmp.hydra_cli import unknown_key_error
 from lasmp.train_cfg import register_configs
+
+CONFIG_PATH, CONFIG_NAME = "cfg", "config"
 
 register_configs()
 
 
-@hydra.main(version_base="1.3", config_path="cfg", config_name="config")
+@hydra.main(version_base="1.3", config_path=CONFIG_PATH, config_name=CONFIG_NAME)
 def main(cfg) -> None:
     from lasmp.train import main as train_main
 
@@ -21,4 +27,8 @@ def main(cfg) -> None:
 
 
 if __name__ == "__main__":
+    error = unknown_key_error(sys.argv[1:], Path(__file__).resolve().parent / CONFIG_PATH, CONFIG_NAME)
+    if error:
+        print(f"error: {error}", file=sys.stderr)
+        sys.exit(2)
     main()

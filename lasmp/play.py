@@ -1,7 +1,7 @@
 """Play a trained LAS-MP policy: the logic behind `play.py`.
 
     python play.py --checkpoint PATH [--num-envs 1] [--steps 500] [--seed S] [--video out.mp4]
-                   [--snapshots out.png] [--viewer] [--export onnx|jit --out DIR] [--trajectories FILE | --scenario NAME]
+                   [--snapshots out.png] [--viewer] [--export onnx --out DIR] [--trajectories FILE | --scenario NAME]
 
 The env and the policy are rebuilt from the checkpoint's own config (never today's defaults);
 only the number of envs, the seed and (optionally) the trajectory file are overridden. The policy
@@ -32,12 +32,13 @@ from lasmp.atomic import atomic_open, atomic_write_with
 from lasmp.config import ConfigError
 from lasmp.deploy import load_deploy_env
 from lasmp.envs.trajectories import TrajectoryFileError
-from lasmp.modules.export import deploy_metadata, metadata_props
+from lasmp.modules.export import deploy_metadata, metadata_props, write_onnx
 from lasmp.render.renderer import (
     SNAPSHOT_COUNT,
     EnvRenderer,
     RenderError,
     VideoWriter,
+    env_state,
     frame_caption,
     save_snapshots,
     snapshot_steps,
@@ -48,46 +49,25 @@ from lasmp.render.viewer import Viewer, has_display
 # ---------------------------------------------------------------------------------------------
 # Export
 # ---------------------------------------------------------------------------------------------
-def export_policy(policy, fmt: str, out_dir: str | Path, metadata: dict | None = None) -> Path:
-    """Write the deployable policy (input obs_window (1, H+1, D), output actions) as ONNX or TorchScript.
+def export_policy(policy, out_dir: str | Path, metadata: dict | None = None) -> Path:
+    """Write the deployable policy (input obs_window (1, H+1, D), output actions) as ONNX.
 
-    With `metadata` (`lasmp.modules.export.deploy_metadata`), the file carries it (ONNX: `metadata_props`, each value
-    JSON-encoded; TorchScript: the extra file `policy.json`) and `policy.json` is written beside it.
+    With `metadata` (`lasmp.modules.export.deploy_metadata`), the file carries it in its
+    `metadata_props` (each value JSON-encoded) and `policy.json` is written beside it.
     """
     out_dir = Path(out_dir)
-    if fmt == "onnx":
-        module = policy.as_onnx(False).eval()
-        path = out_dir / "policy.onnx"
+    module = policy.as_onnx(False).eval()
+    path = out_dir / "policy.onnx"
 
-        def write(tmp: str) -> None:
-            torch.onnx.export(
-                module,
-                module.get_dummy_inputs(),
-                tmp,
-                export_params=True,
-                opset_version=18,
-                input_names=module.input_names,
-                output_names=module.output_names,
-                external_data=False,  # one self-contained file (the temp name must not leak into it)
-                verbose=False,
-            )
-            if metadata is not None:
-                import onnx
+    def write(tmp: str) -> None:
+        write_onnx(module, tmp)
+        if metadata is not None:
+            import onnx
 
-                model = onnx.load(tmp)
-                onnx.helper.set_model_props(model, metadata_props(metadata))
-                onnx.save(model, tmp)
+            model = onnx.load(tmp)
+            onnx.helper.set_model_props(model, metadata_props(metadata))
+            onnx.save(model, tmp)
 
-    elif fmt == "jit":
-        module = torch.jit.script(policy.as_jit().eval())
-        path = out_dir / "policy.pt"
-        extra = {"policy.json": json.dumps(metadata)} if metadata is not None else {}
-
-        def write(tmp: str) -> None:
-            module.save(tmp, _extra_files=extra)
-
-    else:
-        raise ValueError(f"export format must be onnx or jit, got {fmt!r}")
     atomic_write_with(path, write)
     if metadata is not None:
         # one key a line, each value compact: JSON that reads like the list in docs/deploy.md
@@ -100,20 +80,56 @@ def export_policy(policy, fmt: str, out_dir: str | Path, metadata: dict | None =
 # ---------------------------------------------------------------------------------------------
 # Rollout
 # ---------------------------------------------------------------------------------------------
-def rollout(env, policy, steps: int, video=None, snapshots=None, viewer=None) -> dict:
+class EpisodeStrip:
+    """Env 0's states over the episode it is in when the run starts: what the snapshot strip shows.
+
+    The strip spans that one episode, from its state at the start to its last before the reset
+    (at the time limit or a collision) or the run's end. Where it ends is known only once it has
+    (after the reset the env holds the next episode's first state), so every step's state (qpos,
+    qvel: a few hundred bytes) and caption are kept, and the frames are rendered from them after
+    the run.
+    """
+
+    def __init__(self, env) -> None:
+        self.states: list[tuple] = []
+        self.captions: list[str] = []
+        self.times_s: list[float] = []
+        self.ended = False
+        self._keep(env)
+
+    def _keep(self, env) -> None:
+        self.states.append(env_state(env, 0))
+        self.captions.append(frame_caption(env, 0))  # no collision yet: one would end the episode
+        self.times_s.append(float(env.episode_length_buf[0]) * env.dt_s)
+
+    def step(self, env, done: bool) -> None:
+        """After a policy step: keep env 0's new state, unless its episode has just ended."""
+        if done:
+            self.ended = True
+        elif not self.ended:
+            self._keep(env)
+
+    def picks(self, count: int = SNAPSHOT_COUNT) -> list[int]:
+        """The kept states the strip shows: evenly spaced, the first and the last included."""
+        return sorted(snapshot_steps(len(self.states), count))
+
+    def frames(self, renderer) -> list:
+        return [renderer.frame(self.captions[k], self.states[k]) for k in self.picks()]
+
+
+def rollout(env, policy, steps: int, video=None, strip: EpisodeStrip | None = None, viewer=None) -> dict:
     """Run `steps` deterministic policy steps; return the summary counts.
 
-    video: (EnvRenderer, VideoWriter) for a frame per step; snapshots: (EnvRenderer, frame list)
-    for SNAPSHOT_COUNT frames (one frame per step serves both when they share the renderer);
-    viewer: a Viewer to sync each step (closing it ends the run). Frames carry env 0's caption.
+    video: (EnvRenderer, VideoWriter) for a frame per step, captioned; strip: an EpisodeStrip that
+    keeps env 0's states for the snapshots; viewer: a Viewer to sync each step (closing it ends the
+    run).
     """
     episodes = collisions = collisions_env0 = 0
     reward_sum = 0.0
     done_steps = 0
-    shots = snapshot_steps(steps) if snapshots else set()
     obs = env.get_observations()
     with torch.inference_mode():
-        for step in range(steps):
+        for _ in range(steps):
             obs, reward, dones, extras = env.step(policy(obs))
             done_steps += 1
             collided = dones & ~extras["time_outs"]
@@ -121,15 +137,10 @@ def rollout(env, policy, steps: int, video=None, snapshots=None, viewer=None) ->
             collisions += int(collided.sum())
             collisions_env0 += int(collided[0])
             reward_sum += float(reward.sum())
-            shot = step in shots
-            wanted = ([video[0]] if video else []) + ([snapshots[0]] if shot else [])
-            if wanted:  # one frame per renderer and step
-                caption = frame_caption(env, collisions_env0)
-                frames = {id(r): r.frame(caption) for r in dict.fromkeys(wanted)}
-                if video:
-                    video[1].add(frames[id(video[0])])
-                if shot:
-                    snapshots[1].append(frames[id(snapshots[0])].copy())
+            if video:
+                video[1].add(video[0].frame(frame_caption(env, collisions_env0)))
+            if strip:
+                strip.step(env, bool(dones[0]))
             if viewer and not viewer.sync():
                 break
     return {
@@ -164,10 +175,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--video", help="write an mp4 of env 0 (camera following the platform)")
     p.add_argument(
         "--snapshots",
-        help=f"write a PNG strip of {SNAPSHOT_COUNT} frames of env 0 (camera following the platform)",
+        help=f"write a PNG strip of {SNAPSHOT_COUNT} frames of env 0's first episode, its first state to its last "
+        "(camera following the platform)",
     )
     p.add_argument("--viewer", action="store_true", help="show env 0 in MuJoCo's viewer (needs a display)")
-    p.add_argument("--export", choices=("onnx", "jit"), help="write the deployable policy to --out")
+    p.add_argument(
+        "--export", choices=("onnx",), help="write the deployable policy to --out (docs/deploy.md)"
+    )
     p.add_argument("--out", help="directory for --export")
     p.add_argument("--trajectories", help="a trajectory file (.npz) replayed instead of sampled trajectories")
     p.add_argument(
@@ -254,15 +268,18 @@ def main(argv: list[str] | None = None) -> int:
     except (CheckpointError, TrajectoryFileError, ConfigError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    # a run directory means its newest checkpoint: say which file that was
+    print(f"loaded {data['path']} (iteration {data['iter']}, task {cfg.task})", flush=True)
 
     if args.export:
         metadata = deploy_metadata(policy, cfg, data["iter"], Path(data["path"]).name)
-        path = export_policy(policy, args.export, args.out, metadata)
+        path = export_policy(policy, args.out, metadata)
         sidecar = path.parent / "policy.json"
         print(f"exported {args.export} policy to {path} (metadata in {sidecar})", flush=True)
 
     closers = []
-    video = snapshots = viewer = None
+    video = viewer = shots = None
+    strip = EpisodeStrip(env) if args.snapshots else None
     try:
         if args.video or args.snapshots:  # one renderer (camera following the platform) serves both
             renderer = EnvRenderer(env, follow=True)
@@ -271,12 +288,12 @@ def main(argv: list[str] | None = None) -> int:
             writer = VideoWriter(args.video, fps=1.0 / env.dt_s)
             closers.append(writer)
             video = (renderer, writer)
-        if args.snapshots:
-            snapshots = (renderer, [])
         if args.viewer:
             viewer = Viewer(env)
             closers.append(viewer)
-        stats = rollout(env, policy, args.steps, video, snapshots, viewer)
+        stats = rollout(env, policy, args.steps, video, strip, viewer)
+        if strip:
+            shots = strip.frames(renderer)
     except RenderError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -286,7 +303,11 @@ def main(argv: list[str] | None = None) -> int:
     print(summary_line(stats, env.num_envs), flush=True)
     if video:
         print(f"wrote {video[1].frames} frames to {args.video}", flush=True)
-    if snapshots and snapshots[1]:
-        save_snapshots(snapshots[1], args.snapshots)
-        print(f"wrote {len(snapshots[1])} snapshots to {args.snapshots}", flush=True)
+    if shots:
+        save_snapshots(shots, args.snapshots)
+        first, last = strip.times_s[0], strip.times_s[-1]
+        print(
+            f"wrote {len(shots)} snapshots of env 0's episode, t {first:.2f} to {last:.2f} s, to {args.snapshots}",
+            flush=True,
+        )
     return 0

@@ -109,8 +109,18 @@ def test_train_cfg_job_prints_the_tasks_typed_env(tmp_path, task, env_key, overr
     assert str(OmegaConf.select(cfg, key)) == value
 
 
-@pytest.mark.parametrize("override", ["env.trajectory.fiel=x", "+env.trajectory.fiel=x"])
-def test_train_cli_refuses_a_typo_naming_the_key(tmp_path, override):
+@pytest.mark.parametrize(
+    "override, key, valid",
+    [
+        # refused as Hydra composes: our line, not its hint to append the key with `+`
+        ("env.num_envz=3", "env.num_envz", "num_envs"),
+        # appended by Hydra, refused by validation
+        ("+env.trajectory.fiel=x", "env.trajectory.fiel", "file"),
+    ],
+)
+def test_train_cli_refuses_a_typo_naming_the_key_and_the_valid_ones_never_a_plus(
+    tmp_path, override, key, valid
+):
     out = subprocess.run(
         [
             sys.executable,
@@ -124,5 +134,53 @@ def test_train_cli_refuses_a_typo_naming_the_key(tmp_path, override):
         cwd=tmp_path,
         timeout=300,
     )
-    assert out.returncode != 0 and "env.trajectory.fiel" in out.stderr, out.stderr[-2000:]
+    assert out.returncode == 2, out.stderr[-2000:]
+    error = out.stderr.strip().splitlines()[-1]
+    assert error.startswith("error: unknown config key") and f"'{key}'" in error and f"'{valid}'" in error
+    assert "+env" not in out.stderr and "append" not in out.stderr, out.stderr[-2000:]
     assert not (tmp_path / "run").exists()  # refused before anything was written
+
+
+def unknown_key_error(argv: list[str]) -> str | None:
+    """train.py's check of its command line `argv`, in this process."""
+    from lasmp import hydra_cli
+    from lasmp.train_cfg import register_configs
+
+    register_configs()  # what train.py does on import
+    return hydra_cli.unknown_key_error(argv, ROOT / "cfg", "config")
+
+
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (
+            ["env.trajectory.fiel=x"],
+            "unknown config key 'env.trajectory.fiel'; valid keys of env.trajectory: [",
+        ),
+        (
+            ["task=rough_static", "env.trajectory.file=x"],
+            "unknown config key 'env.trajectory'; valid keys of env: [",
+        ),
+        (
+            ["env.rewards.weights.task1_centre=1"],
+            "'env.rewards.weights.task1_centre'; valid keys of env.rewards.weights",
+        ),
+        (["--cfg", "job", "seeed=1"], "unknown config key 'seeed'; valid keys: ["),
+        (["task=rough_static", "env.num_envs=8"], None),
+        (["+env.trajectory.fiel=x"], None),  # Hydra appends it: validation refuses it, as above
+        (["task=nope"], None),  # not a key: Hydra's own message lists the tasks
+    ],
+)
+def test_unknown_key_error_words_only_the_unknown_key(argv, expected):
+    error = unknown_key_error(argv)
+    if expected is None:
+        assert error is None
+    else:
+        assert expected in error
+
+
+def test_unknown_key_error_lists_the_keys_of_the_level_the_other_overrides_compose():
+    platform = unknown_key_error(["env.fiel=x"])
+    rough = unknown_key_error(["task=rough_static", "env.fiel=x"])
+    assert "'trajectory'" in platform and "'terrain'" not in platform
+    assert "'terrain'" in rough and "'trajectory'" not in rough

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import logging
 import os
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -49,8 +51,12 @@ def loaded(run_dir):
 
 
 def test_play_runs_and_prints_summary(run_dir, capsys):
+    from lasmp.algo.checkpoint import latest_checkpoint
+
     assert main(["--checkpoint", str(run_dir), "--steps", "50", "--num-envs", "2"]) == 0
     out = capsys.readouterr().out
+    newest = latest_checkpoint(run_dir)  # the file the run directory stands for
+    assert f"loaded {newest} (iteration 0, task moving_platform)" in out
     assert "played 50 steps x 2 envs" in out
     assert "episodes ended" in out and "collisions" in out and "mean reward per step" in out
 
@@ -85,11 +91,23 @@ def test_policy_from_checkpoint_config_and_deploy_ignores_privileged(loaded):
         torch.testing.assert_close(policy(nan_obs), actions, rtol=0, atol=0)
 
 
-def test_export_onnx_matches_torch(run_dir, loaded, tmp_path, capsys):
+def test_export_onnx_matches_torch_and_says_nothing_else(run_dir, loaded, tmp_path, capsys):
     ort = pytest.importorskip("onnxruntime")
-    assert (
-        main(["--checkpoint", str(run_dir), "--steps", "0", "--export", "onnx", "--out", str(tmp_path)]) == 0
-    )
+    from lasmp.modules.export import _TORCH_ONNX_REGISTRY_LOGGER
+
+    logged = []
+    registry = logging.getLogger(_TORCH_ONNX_REGISTRY_LOGGER)  # "torchvision is not installed" x 4
+    handler = logging.Handler()
+    handler.emit = logged.append
+    registry.addHandler(handler)
+    try:
+        with warnings.catch_warnings(record=True) as warned:
+            warnings.simplefilter("always")
+            args = ["--checkpoint", str(run_dir), "--steps", "0", "--export", "onnx", "--out", str(tmp_path)]
+            assert main(args) == 0
+    finally:
+        registry.removeHandler(handler)
+    assert not logged and not warned, (logged, [str(w.message) for w in warned])
     path = tmp_path / "policy.onnx"
     assert str(path) in capsys.readouterr().out
     assert sorted(os.listdir(tmp_path)) == [
@@ -104,17 +122,6 @@ def test_export_onnx_matches_torch(run_dir, loaded, tmp_path, capsys):
         expected = policy(obs).numpy()
     (actions,) = sess.run(None, {"obs_window": obs_window(obs).numpy()})
     np.testing.assert_allclose(actions, expected, atol=1e-5)
-
-
-def test_export_jit_matches_torch(run_dir, loaded, tmp_path):
-    assert (
-        main(["--checkpoint", str(run_dir), "--steps", "0", "--export", "jit", "--out", str(tmp_path)]) == 0
-    )
-    scripted = torch.jit.load(str(tmp_path / "policy.pt"))
-    env, policy, _, _ = loaded
-    with torch.inference_mode():
-        obs = env.get_observations()
-        torch.testing.assert_close(scripted(obs_window(obs)), policy(obs), atol=1e-5, rtol=1e-5)
 
 
 @pytest.fixture(scope="module")
@@ -146,6 +153,88 @@ def test_video_and_snapshots(run_dir, tmp_path, gl):
     assert strip[..., :3].std() > 0  # not a blank image
     white = (strip[:20, :640, :3] > 0.9).all(axis=-1)
     assert white.sum() > 50  # the caption's text in the first frame
+
+
+class CaptionRenderer:
+    """EnvRenderer's stand-in: a tiny blank frame for each call, its caption recorded (no OpenGL)."""
+
+    captions: list[str] = []
+
+    def __init__(self, env, follow=True):
+        CaptionRenderer.captions = []
+
+    def frame(self, caption=None, state=None):
+        CaptionRenderer.captions.append(caption)
+        return np.zeros((2, 2, 3), np.uint8)
+
+    def close(self):
+        pass
+
+
+def _times_s(captions: list[str]) -> list[float]:
+    return [float(c.split()[1]) for c in captions]  # "t  1.50 s   N 7 ..."
+
+
+def test_snapshots_show_one_episode_from_its_first_state_to_its_last_before_the_reset(
+    run_dir, tmp_path, monkeypatch, capsys
+):
+    import lasmp.play as play
+
+    # the episode play.py shows (no --seed: the same every time), played here first: where it ends
+    env, policy, _, _ = load_deploy_env(run_dir, num_envs=1)
+    steps = env.max_episode_length + 5  # past the time limit: the run goes on into the next episode
+    obs, kept = env.get_observations(), 1  # the states of env 0's episode: the first, then one a step
+    with torch.inference_mode():
+        while kept < steps + 1:
+            obs, _, dones, _ = env.step(policy(obs))
+            if dones[0]:  # the env now holds the next episode's first state
+                break
+            kept += 1
+    last = (kept - 1) * env.dt_s  # its last state before the reset (time limit or collision)
+
+    monkeypatch.setattr(play, "EnvRenderer", CaptionRenderer)
+    snaps = tmp_path / "snaps.png"
+    assert main(["--checkpoint", str(run_dir), "--steps", str(steps), "--snapshots", str(snaps)]) == 0
+    times = _times_s(CaptionRenderer.captions)
+    assert len(times) == 6 and times == sorted(times)
+    assert times[0] == 0.0 and times[-1] == pytest.approx(last)
+    assert snaps.exists() and f"t 0.00 to {last:.2f} s" in capsys.readouterr().out
+
+
+class CollidingEnv:
+    """One env whose episodes end in a collision after `length` steps; qpos[0] counts the steps."""
+
+    num_envs, dt_s = 1, 0.02
+
+    def __init__(self, length: int):
+        self.length = length
+        self.episode_length_buf = torch.zeros(1, dtype=torch.long)
+        self.sim = type("Sim", (), {"qpos": np.zeros((1, 3)), "qvel": np.zeros((1, 2))})()
+
+    def get_observations(self):
+        return None
+
+    def step(self, actions):
+        self.episode_length_buf += 1
+        done = self.episode_length_buf >= self.length
+        self.episode_length_buf[done] = 0  # reset: the env holds the next episode's first state
+        self.sim.qpos[0, 0] = float(self.episode_length_buf[0])
+        return None, torch.zeros(1), done, {"time_outs": torch.zeros(1, dtype=torch.bool)}
+
+
+def test_snapshots_of_an_episode_cut_short_end_with_its_last_state_before_the_collision():
+    from lasmp.play import EpisodeStrip, rollout
+
+    env = CollidingEnv(length=9)
+    strip = EpisodeStrip(env)
+    assert rollout(env, lambda obs: None, 30, strip=strip)["collisions"] == 3
+    kept = [int(qpos[0]) for qpos, _ in strip.states]
+    assert kept == list(range(9)) and strip.ended  # steps 0..8 of the first episode, none after
+    assert strip.picks() == [0, 2, 3, 5, 6, 8]
+    assert _times_s(strip.captions)[-1] == pytest.approx(8 * env.dt_s)
+    assert len(strip.frames(CaptionRenderer(env))) == 6 and CaptionRenderer.captions == [
+        strip.captions[k] for k in strip.picks()
+    ]
 
 
 def test_truncated_checkpoint_exits_2(run_dir, tmp_path, capsys):
@@ -281,7 +370,7 @@ def test_policy_checkpoint_is_small_plays_the_same_and_refuses_to_resume(run_dir
             env_a.step(act_a)
             env_b.step(act_b)
     runner = make_runner(to_train_cfg(OmegaConf.create(data["config"])), None)
-    with pytest.raises(CheckpointError, match="policy checkpoint .*to resume training"):
+    with pytest.raises(CheckpointError, match="policy checkpoint.*to resume training"):
         runner.load(str(slim))
     assert ckpt_main(["policy", str(tmp_path / "nope"), str(tmp_path / "x.pt")]) == 2
 

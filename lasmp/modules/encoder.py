@@ -30,7 +30,6 @@ class ImplicitEncoder(nn.Module):
         """(n, input_dim) raw x_imp -> (n, latent_dim) l_imp."""
         return self.mlp(self.normalizer(x_imp))
 
-    @torch.jit.unused
     def update_normalization(self, x_imp: torch.Tensor) -> None:
         """Update the running x_imp statistics (no-op in eval mode, as EmpiricalNormalization)."""
         self.normalizer.update(x_imp)

@@ -1,9 +1,11 @@
-"""The metadata that travels with an exported LAS-MP policy (docs/deploy.md): what a robot runtime
-needs besides the network (`LasmpDeployPolicy`, in `policy.py`)."""
+"""The exported LAS-MP policy (docs/deploy.md): the ONNX file of the network (`LasmpDeployPolicy`,
+in `policy.py`) and the metadata that travels with it, what a robot runtime needs besides."""
 
 from __future__ import annotations
 
 import json
+import logging
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -162,3 +164,36 @@ def read_onnx_metadata(path: str | Path) -> dict:
 
     model = onnx.load(str(path), load_external_data=False)
     return {p.key: json.loads(p.value) for p in model.metadata_props}
+
+
+# torch's exporter, not ours: its op registry logs a warning for each torchvision op it skips when
+# torchvision is absent (a policy uses none), and its pytree code warns that it uses a deprecated
+# class of its own (torch 2.13). Both are silenced for the export call alone.
+_TORCH_ONNX_REGISTRY_LOGGER = "torch.onnx._internal.exporter._registration"
+_TORCH_PYTREE_WARNING = r"`isinstance\(treespec, LeafSpec\)` is deprecated"
+
+
+def write_onnx(module, path: str | Path) -> None:
+    """`module` (a policy's `as_onnx()`, in eval mode) as one self-contained ONNX file at `path`,
+    opset 18, without torch's exporter noise."""
+    import torch
+
+    registry = logging.getLogger(_TORCH_ONNX_REGISTRY_LOGGER)
+    level = registry.level
+    registry.setLevel(logging.ERROR)
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=_TORCH_PYTREE_WARNING, category=FutureWarning)
+            torch.onnx.export(
+                module,
+                module.get_dummy_inputs(),
+                str(path),
+                export_params=True,
+                opset_version=18,
+                input_names=module.input_names,
+                output_names=module.output_names,
+                external_data=False,  # one self-contained file (a temp name must not leak into it)
+                verbose=False,
+            )
+    finally:
+        registry.setLevel(level)

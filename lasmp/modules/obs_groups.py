@@ -43,8 +43,7 @@ X_EXP_NAMES: tuple[str, ...] = (
 U_ALN_NAMES: tuple[str, ...] = ("u_aln_vx", "u_aln_vy", "u_aln_wz")
 
 
-# Named column ranges of x_exp (n, 13), as functions rather than slice constants: TorchScript, which
-# compiles the deployable policy (export.py), takes no global slice or int.
+# Named column ranges of x_exp (n, 13).
 def v_body_xy(x_exp: torch.Tensor) -> torch.Tensor:
     """(n, 2) trunk velocity x, y in B, m/s."""
     return x_exp[:, 4:6]

@@ -309,9 +309,11 @@ class LasmpActor(MLPModel):
 
     # ----------------------------------------------------------------- export
     def as_jit(self) -> nn.Module:
-        """Deployment-mode policy over the proprioceptive window only (TorchScript-scriptable)."""
-        self._check_exportable()
-        return LasmpDeployPolicy(self)
+        """Refused: the export is ONNX (`as_onnx`, play.py --export onnx); rsl_rl's inherited
+        TorchScript copy would hold the backbone without the estimators."""
+        raise NotImplementedError(
+            "a LAS-MP policy exports to ONNX only: play.py --export onnx (docs/deploy.md)"
+        )
 
     def as_onnx(self, verbose: bool) -> nn.Module:
         """Deployment-mode policy over the proprioceptive window only (ONNX-exportable)."""
@@ -369,11 +371,6 @@ class LasmpDeployPolicy(nn.Module):
         if self.history_input:
             latent.append(history_n.flatten(1))
         return self.deterministic_output(self.mlp(torch.cat(latent, dim=-1)))
-
-    @torch.jit.export
-    def reset(self) -> None:
-        """No recurrent state (the window is given whole each step)."""
-        pass
 
     def get_dummy_inputs(self) -> tuple[torch.Tensor]:
         return (torch.zeros(1, self.history_len + 1, self.obs_dim),)

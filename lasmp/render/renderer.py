@@ -54,18 +54,24 @@ def select_gl_backend() -> None:
 
 
 def _row(x, i: int) -> np.ndarray:
-    """Row i of a per-env state array (numpy view or torch tensor) as a float64 numpy array."""
+    """Row i of a per-env state array (numpy view or torch tensor) as a float64 numpy array (a copy:
+    the batch moves on)."""
     if hasattr(x, "detach"):
         x = x.detach().cpu().numpy()
-    return np.asarray(x[i], dtype=np.float64)
+    return np.array(x[i], dtype=np.float64)
 
 
-def copy_state(env, model, data, i: int = 0) -> None:
-    """Env i's qpos/qvel into `data` (of the render model: same layout) and its derived quantities."""
+def env_state(env, i: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Env i's (qpos, qvel): all a frame of it is rendered from, so a state kept now renders later."""
+    return _row(env.sim.qpos, i), _row(env.sim.qvel, i)
+
+
+def copy_state(env, model, data, i: int = 0, state: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    """Env i's qpos/qvel (or `state`, an `env_state` kept earlier) into `data` (of the render model:
+    same layout) and its derived quantities."""
     import mujoco
 
-    data.qpos[:] = _row(env.sim.qpos, i)
-    data.qvel[:] = _row(env.sim.qvel, i)
+    data.qpos[:], data.qvel[:] = env_state(env, i) if state is None else state
     mujoco.mj_forward(model, data)
 
 
@@ -123,16 +129,20 @@ class EnvRenderer:
             cam.azimuth = math.degrees(math.atan2(d[1], d[0]))
         self.camera = cam
 
-    def update(self) -> None:
-        """Copy env 0's current state into the render data and aim the camera."""
-        copy_state(self.env, self.model, self.data, 0)
+    def update(self, state: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """Copy env 0's current state (or `state`, its `env_state` kept earlier) into the render data
+        and aim the camera."""
+        copy_state(self.env, self.model, self.data, 0, state)
         if self.follow:
             self.camera.lookat[:] = self.data.xpos[self.body] + [0.0, 0.0, self.lookat_up_m]
         self.renderer.update_scene(self.data, self.camera)
 
-    def frame(self, caption: str | None = None) -> np.ndarray:
-        """(height, width, 3) uint8 image of env 0's current state, with `caption` drawn on top."""
-        self.update()
+    def frame(
+        self, caption: str | None = None, state: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> np.ndarray:
+        """(height, width, 3) uint8 image of env 0's current state (or `state`, as `update`), with
+        `caption` drawn on top."""
+        self.update(state)
         image = self.renderer.render()
         return draw_caption(image, caption) if caption else image
 
@@ -173,5 +183,6 @@ def save_snapshots(frames: list[np.ndarray], path: str) -> None:
 
 
 def snapshot_steps(steps: int, count: int = SNAPSHOT_COUNT) -> set[int]:
-    """Steps (after which a frame is taken) evenly spaced over the run, first and last included."""
+    """`count` indices evenly spaced over `steps` states (state k: k policy steps in), first and last
+    included; fewer where there are fewer states."""
     return {int(s) for s in np.linspace(0, max(steps - 1, 0), count).round()}

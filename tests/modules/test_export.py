@@ -1,4 +1,4 @@
-"""The deployable export (`play.py --export onnx|jit --out DIR`): the model and the metadata a robot
+"""The deployable export (`play.py --export onnx --out DIR`): the model and the metadata a robot
 runtime needs without this repo (docs/deploy.md), checked against the checkpoint, the A1's constants,
 the env that trained the policy and the torch policy itself."""
 
@@ -186,15 +186,3 @@ def test_onnx_model_on_a_recorded_window_matches_the_torch_policy(exported, load
     normalized = (window.numpy() - np.float32(norm["mean"])) / (np.float32(norm["std"]) + norm["eps"])
     (other,) = sess.run(None, {meta["input_name"]: normalized.astype(np.float32)})
     assert not np.allclose(other, expected, atol=1e-3)
-
-
-def test_torchscript_export_still_works_and_carries_the_metadata(run_dir, loaded, meta, tmp_path):
-    args = ["--checkpoint", str(run_dir), "--steps", "0", "--export", "jit", "--out", str(tmp_path)]
-    assert main(args) == 0
-    extra = {"policy.json": ""}
-    scripted = torch.jit.load(str(tmp_path / "policy.pt"), _extra_files=extra)
-    assert json.loads(extra["policy.json"]) == json.loads((tmp_path / "policy.json").read_text()) == meta
-    env, policy, _, _ = loaded
-    obs, window = recorded_window(env, policy, steps=3)
-    with torch.inference_mode():
-        torch.testing.assert_close(scripted(window), policy(obs), rtol=0, atol=1e-5)

@@ -9,6 +9,7 @@ from rsl_rl.utils import resolve_callable
 from tensordict import TensorDict
 
 from lasmp.modules import HistoryEstimator, ImplicitEncoder, LasmpActor
+from lasmp.modules.export import write_onnx
 from lasmp.modules.obs_groups import (
     GROUP_EXPLICIT,
     GROUP_IMPLICIT,
@@ -294,15 +295,7 @@ def test_onnx_export_matches_deploy(tmp_path, name):
     module = actor.as_onnx(verbose=False)
     module.eval()
     path = tmp_path / "policy.onnx"
-    torch.onnx.export(
-        module,
-        module.get_dummy_inputs(),
-        str(path),
-        export_params=True,
-        opset_version=18,
-        input_names=module.input_names,
-        output_names=module.output_names,
-    )
+    write_onnx(module, path)
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     inputs = sess.get_inputs()
     assert [i.name for i in inputs] == ["obs_window"]
@@ -322,11 +315,6 @@ def test_onnx_export_matches_deploy(tmp_path, name):
     assert not np.allclose(other, onnx_actions)
 
 
-def test_jit_export_matches_deploy():
-    actor = make_actor()
-    scripted = torch.jit.script(actor.as_jit())
-    window = torch.randn(3, H + 1, D)
-    actor.deploy = True
-    obs = TensorDict({"policy": window[:, 0], "history": window[:, 1:]}, batch_size=[3])
-    with torch.no_grad():
-        torch.testing.assert_close(scripted(window), actor(obs))
+def test_torchscript_export_is_refused_not_inherited_from_rsl_rl():
+    with pytest.raises(NotImplementedError, match="ONNX only"):
+        make_actor().as_jit()

@@ -1,12 +1,13 @@
 """Build the env, the runner and train: the logic behind `train.py`.
 
 Run directories (`lasmp.rundir`): a training locks its directory; a new run is refused a directory
-that holds a run. `resume=DIR` (or a checkpoint in DIR) continues in DIR, unless runner.log_dir names
-another, empty directory (a branch). A resume is checked whole (the checkpoint, the config, the
-envs' count, the networks) before anything is written, so that a failed resume leaves the run as it
-was. From the command line a resume runs the checkpoint's own config with the keys the command sets
-on top (`explicit_keys`); every key the command changes is applied and said, or refused where it
-cannot take effect (`RESUME_FIXED`).
+that holds a run. `resume=DIR` (its newest full checkpoint: a policy checkpoint holds no training
+state) or a full checkpoint in DIR continues in DIR, unless runner.log_dir names another, empty
+directory (a branch); runner.max_iterations then counts the iterations to add. A resume is checked
+whole (the checkpoint, the config, the envs' count, the networks) before anything is written, so
+that a failed resume leaves the run as it was. From the command line a resume runs the
+checkpoint's own config with the keys the command sets on top (`explicit_keys`); every key the
+command changes is applied and said, or refused where it cannot take effect (`RESUME_FIXED`).
 """
 
 from __future__ import annotations
@@ -23,13 +24,19 @@ import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo import distributed as dp
-from lasmp.algo.checkpoint import CheckpointError, check_finite, is_policy_only, read_checkpoint
+from lasmp.algo.checkpoint import (
+    CheckpointError,
+    check_finite,
+    read_checkpoint,
+    refuse_policy_only,
+    run_checkpoints,
+)
 from lasmp.algo.runner import LasmpRunner, TrainingFaulted, TrainingInterrupted
 from lasmp.atomic import atomic_open
 from lasmp.config import ConfigError
 from lasmp.envs import registry
 from lasmp.envs.trajectories import TrajectoryFileError
-from lasmp.rundir import RunDirError, checkpoints, claim, describe, run_files
+from lasmp.rundir import RunDirError, claim, describe, run_files
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, to_train_cfg
 
 CFG_DIR = Path(__file__).resolve().parents[1] / "cfg"
@@ -89,6 +96,7 @@ def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunne
         device=cfg.device,
         full_config=to_plain(cfg),
         max_fault_fraction=cfg.runner.max_fault_fraction,
+        keep_full=cfg.runner.keep_full,
     )
 
 
@@ -162,11 +170,7 @@ def check_resume(cfg: TrainCfg, data: dict) -> dict[str, tuple]:
     """Refuse a resume that cannot go as `cfg` says, before anything is built or written; return
     the keys it changes from the checkpoint's config, {key: (saved, now)}."""
     path = data["path"]
-    if is_policy_only(data):
-        raise CheckpointError(
-            f"{path} is a policy checkpoint (no optimizer states): play or evaluate it; to "
-            "resume training, give the run's own model_<N>.pt"
-        )
+    refuse_policy_only(data)
     try:
         check_finite({k: data[k] for k in data if k.endswith("state_dict")}, f"checkpoint {path}")
     except FloatingPointError as err:
@@ -231,7 +235,7 @@ def _check_run_dir(log_dir: Path, data: dict | None):
         if continuing:
             m = re.fullmatch(r"model_(\d+)\.pt", Path(data["path"]).name)
             position = int(m.group(1)) if m else data["iter"]  # where the resumed file sits in the run
-            later = [p.name for n, p in checkpoints(run_dir).items() if n > position]
+            later = [p.name for n, p in run_checkpoints(run_dir).items() if n > position]
             if later:
                 raise RunDirError(
                     f"resume={data['path']} is not the latest checkpoint of {run_dir} ({describe(later)} came "
@@ -241,7 +245,7 @@ def _check_run_dir(log_dir: Path, data: dict | None):
             return
         held = run_files(run_dir)
         if held:
-            saved = "" if checkpoints(run_dir) else " (no checkpoint: delete the directory to reuse it)"
+            saved = "" if run_checkpoints(run_dir) else " (no checkpoint: delete the directory to reuse it)"
             raise RunDirError(
                 f"runner.log_dir={run_dir} already holds a run ({describe(held)}){saved}: give resume={run_dir} to "
                 "continue it, or another runner.log_dir for a new run"
@@ -256,7 +260,7 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
     cfg = to_train_cfg(cfg)
     data, changed = None, {}
     if cfg.resume:  # fail before building anything if the checkpoint is unusable; read it once
-        data = read_checkpoint(cfg.resume, "cpu")
+        data = read_checkpoint(cfg.resume, "cpu", full_only=True)
         cfg = resumed_cfg(cfg, data, explicit)
         changed = check_resume(cfg, data)
     ranks = dp.ranks_from_env()  # torchrun: rank 0 alone holds the run directory, logs and saves
@@ -285,19 +289,24 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
                     + ", ".join(f"{k} {old} -> {new}" for k, (old, new) in others.items()),
                     flush=True,
                 )
-            say(f"resumed from {data['path']} at iteration {runner.current_learning_iteration}", flush=True)
+        first = runner.current_learning_iteration
+        last = first + cfg.runner.max_iterations - 1  # the iteration this command ends at
+        if data is not None:
+            say(
+                f"resumed from {data['path']} at iteration {first} (0\u2013{first - 1} done); runner.max_iterations "
+                f"counts the iterations to add: {cfg.runner.max_iterations} more, to {last}",
+                flush=True,
+            )
         if ranks.is_main:  # only now, with everything checked, the run directory's config
             with atomic_open(log_dir / "config.yaml", "w") as f:
                 f.write(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
         processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
+        span = f" ({first}\u2013{last})" if cfg.runner.max_iterations else ""
         say(
             f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs{processes}, {cfg.runner.max_iterations} "
-            f"iterations, logs in {log_dir}",
+            f"iterations{span}, logs in {log_dir}",
             flush=True,
         )
-        last = (
-            runner.current_learning_iteration + cfg.runner.max_iterations - 1
-        )  # the iteration this command ends at
         try:
             runner.learn(cfg.runner.max_iterations)
         except TrainingInterrupted as stop:

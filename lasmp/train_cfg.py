@@ -121,8 +121,14 @@ class AlgoCfg:
 @dataclass
 class RunnerCfg:
     num_steps_per_env: int = 12  # 0.24 s of data per env per iteration, as in the paper
+    # on resume, the iterations to add (rsl_rl's convention): a run saved at model_34.pt resumed with
+    # max_iterations=35 runs iterations 35-69
     max_iterations: int = 1500
     save_interval: int = 100
+    # (ours) the full checkpoints model_<N>.pt kept in the run directory, the newest (~24 MB each at 1,024
+    # envs, 20 MB of it the envs' running state): each older save becomes its policy checkpoint
+    # policy_<N>.pt (~2 MB), which plays and evaluates but cannot resume, so a laptop keeps a long run
+    keep_full: int = 2
     log_dir: str | None = None  # default: logs/<task>/<policy>/<date_time>
     check_for_nan: bool = True
     # stop when more than this fraction of an iteration's env-steps fault (the physics diverges); 1: never
@@ -142,7 +148,7 @@ class TrainCfg:
         "cpu"  # where the learner runs, and the physics with env.backend=warp (cpu backend: the CPU)
     )
     torch_threads: int = 0  # CPU threads of torch for the learner; 0 = torch's default (all cores)
-    resume: str | None = None  # a checkpoint file or a run directory (its latest model_<N>.pt)
+    resume: str | None = None  # a full checkpoint file or a run directory (its latest model_<N>.pt)
     # on resume, start every env's episode anew instead of restoring the envs' running state: needed
     # when env.num_envs differs from the checkpoint's (the resume is then not exact)
     resume_drop_env_state: bool = False
@@ -216,6 +222,8 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
         raise ConfigError(
             "runner.num_steps_per_env and runner.save_interval must be >= 1, max_iterations >= 0"
         )
+    if type(r.keep_full) is not int or r.keep_full < 1:
+        raise ConfigError(f"runner.keep_full must be an integer >= 1, got {r.keep_full!r}")
     if not 0 <= r.max_fault_fraction <= 1:
         raise ConfigError(f"runner.max_fault_fraction must be in [0, 1], got {r.max_fault_fraction}")
     validate_logger(r)

@@ -14,12 +14,17 @@ file from elsewhere never runs code (the env's running state is stored by `lasmp
 A *policy checkpoint* (`policy_checkpoint`, `kind` = "policy") is the same file without the
 optimizers' states and the envs' running state: a few MB that play.py and evaluate.py load, and
 train.py refuses to resume.
+In a run directory a full checkpoint is `model_<N>.pt` and a policy checkpoint `policy_<N>.pt`, N the
+iteration saved; training keeps the newest `runner.keep_full` full ones and turns older ones into
+policy ones (`keep_newest_full`). A run directory given to play or evaluate means its newest
+checkpoint of either kind, given to a resume its newest full one (`latest_checkpoint`).
 It is written to a temporary file in the same directory and renamed over the target
 (`atomic_torch_save`), so an interrupted save never leaves a truncated checkpoint behind.
 """
 
 from __future__ import annotations
 
+import os
 import pickle
 import re
 from contextlib import contextmanager
@@ -43,26 +48,76 @@ def obs_layout(obs) -> dict[str, list[int]]:
     return {key: list(value.shape[1:]) for key, value in obs.items()}
 
 
-def latest_checkpoint(run_dir: str | Path) -> Path:
-    """The `model_<N>.pt` of `run_dir` with the largest N (numerically: model_10 after model_9)."""
-    run_dir = Path(run_dir)
-    found = []
-    for path in run_dir.glob("model_*.pt"):
-        m = re.fullmatch(r"model_(\d+)\.pt", path.name)
-        if m:
-            found.append((int(m.group(1)), path))
+FULL, POLICY = "model", "policy"  # the file name prefixes of full and policy checkpoints in a run
+_NAME = re.compile(rf"({FULL}|{POLICY})_(\d+)\.pt")
+
+
+def run_checkpoints(run_dir: str | Path, full_only: bool = False) -> dict[int, Path]:
+    """The checkpoints of `run_dir` by iteration, oldest first: `model_<N>.pt` (full) and
+    `policy_<N>.pt` (policy only; `full_only` leaves them out). Where both exist for an N, the full
+    one: it holds everything the policy one does."""
+    found: dict[int, Path] = {}
+    for path in Path(run_dir).glob("*_*.pt"):
+        m = _NAME.fullmatch(path.name)
+        if m and not (full_only and m.group(1) == POLICY):
+            n = int(m.group(2))
+            if n not in found or m.group(1) == FULL:
+                found[n] = path
+    return dict(sorted(found.items()))
+
+
+def latest_checkpoint(run_dir: str | Path, full_only: bool = False) -> Path:
+    """The checkpoint of `run_dir` with the largest N (numerically: 10 after 9), full or policy only
+    (`full_only`: the newest `model_<N>.pt`, the one a resume needs)."""
+    found = run_checkpoints(run_dir, full_only)
     if not found:
-        raise CheckpointError(f"no checkpoint model_<N>.pt in {run_dir}")
-    return max(found)[1]
+        if full_only and run_checkpoints(run_dir):
+            raise CheckpointError(
+                f"no full checkpoint model_<N>.pt in {run_dir}, only policy checkpoints (policy_<N>.pt), "
+                "which hold no training state: they play and evaluate, but cannot resume training"
+            )
+        raise CheckpointError(f"no checkpoint model_<N>.pt or policy_<N>.pt in {run_dir}")
+    return found[max(found)]
 
 
-def read_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
-    """Load and sanity-check a checkpoint file (a run directory means its latest checkpoint)."""
+def refuse_policy_only(data: dict) -> None:
+    """A policy checkpoint cannot resume training: CheckpointError saying so, naming the newest full
+    checkpoint of its directory where there is one."""
+    if not is_policy_only(data):
+        return
+    path = Path(data["path"])
+    full = run_checkpoints(path.parent, full_only=True)
+    where = (
+        f"give {full[max(full)]}, the newest full checkpoint of its run"
+        if full
+        else f"give a full checkpoint ({FULL}_<N>.pt): {path.parent} holds none"
+    )
+    raise CheckpointError(
+        f"{path} is a policy checkpoint (it holds no training state: no optimizers, no envs' running "
+        f"state). Play or evaluate it; to resume training, {where}"
+    )
+
+
+def _converted(path: Path) -> str:
+    """For a missing `model_<N>.pt` whose `policy_<N>.pt` exists: what became of it."""
+    m = _NAME.fullmatch(path.name)
+    policy = path.with_name(f"{POLICY}_{m.group(2)}.pt") if m and m.group(1) == FULL else None
+    if policy is None or not policy.exists():
+        return ""
+    return (
+        f" (runner.keep_full kept it as the policy checkpoint {policy.name}, which plays and "
+        "evaluates but cannot resume training)"
+    )
+
+
+def read_checkpoint(path: str | Path, map_location: str = "cpu", full_only: bool = False) -> dict:
+    """Load and sanity-check a checkpoint file (a run directory means its latest checkpoint, the
+    latest full one with `full_only`)."""
     path = Path(path)
     if path.is_dir():
-        path = latest_checkpoint(path)
+        path = latest_checkpoint(path, full_only)
     if not path.exists():
-        raise CheckpointError(f"checkpoint {path} does not exist")
+        raise CheckpointError(f"checkpoint {path} does not exist{_converted(path)}")
     try:
         data = torch.load(path, map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as err:
@@ -153,6 +208,42 @@ def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False) -> 
     check_finite(slim, f"refusing to write {dst}")
     atomic_torch_save(slim, dst)
     return Path(dst)
+
+
+def keep_newest_full(run_dir: str | Path, keep_full: int) -> tuple[list[str], list[str]]:
+    """Keep the newest `keep_full` full checkpoints of `run_dir` and turn each older `model_<N>.pt`
+    into its policy checkpoint `policy_<N>.pt` (a tenth of the size: a laptop keeps a long run).
+    No step loses the only copy: the policy file is written atomically and read back, the directory
+    synced, and only then the full one removed. Returns the conversions ("model_3.pt -> policy_3.pt")
+    and the files left as they were, each with why (an unreadable checkpoint, a full disk, a
+    `policy_<N>.pt` in the way that is not a policy checkpoint)."""
+    full = run_checkpoints(run_dir, full_only=True)
+    done, left = [], []
+    for n in list(full)[: max(len(full) - keep_full, 0)]:
+        src = full[n]
+        dst = src.with_name(f"{POLICY}_{n}.pt")
+        kind = _kind_of(dst) if dst.exists() else None
+        try:
+            if kind not in (None, "a policy checkpoint"):
+                raise CheckpointError(f"{dst.name} exists and is {kind}")
+            policy_checkpoint(src, dst, force=True)  # a policy_<N>.pt of an earlier, cut-short conversion
+            read_checkpoint(dst)
+        except (CheckpointError, OSError) as err:  # OSError: a full disk; the full one stays
+            left.append(f"{src.name} ({err})")
+            continue
+        _sync_directory(src.parent)
+        src.unlink()
+        done.append(f"{src.name} -> {dst.name}")
+    return done, left
+
+
+def _sync_directory(path: Path) -> None:
+    """fsync a directory: the renames in it are on disk before what follows (a removal) is."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def _kind_of(path: Path) -> str:

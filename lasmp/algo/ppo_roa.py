@@ -228,7 +228,7 @@ class PPOROA(PPO):
         bad = {k: v for k, v in loss_dict.items() if not math.isfinite(float(v))}
         if bad:
             raise FloatingPointError(
-                f"non-finite loss after the update of iteration {self.iteration + 1}: {bad}. "
+                f"non-finite loss after the update of iteration {self.iteration}: {bad}. "
                 "Training diverged; lower algo.learning_rate or check the rewards. The last saved checkpoint "
                 "is intact (none is written from a diverged state)."
             )

@@ -9,20 +9,21 @@
 - Interruption: SIGINT (Ctrl-C) or SIGTERM during `learn` lets the current iteration finish, writes
   `model_<it>.pt` and raises `TrainingInterrupted` (the caller prints the resume command). A second
   signal exits at once (`SystemExit`, code 128 + signal: 130 / 143), without a checkpoint.
+- Disk: after each save into the run directory the newest `keep_full` full checkpoints stay, older
+  ones become policy checkpoints (`keep_newest_full`), and a line names them.
+- Console (`lasmp.algo.console`): one line per network instead of rsl_rl's printout of every layer,
+  then one progress line per iteration.
 """
 
 from __future__ import annotations
 
-import datetime
 import signal
-import statistics
 import sys
 import threading
 import time
 from pathlib import Path
 
 from rsl_rl.runners import OnPolicyRunner
-from rsl_rl.utils.logger import Logger
 
 from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import (
@@ -31,13 +32,15 @@ from lasmp.algo.checkpoint import (
     atomic_torch_save,
     check_compatible,
     check_finite,
-    is_policy_only,
+    keep_newest_full,
     not_fitting,
     obs_layout,
     read_checkpoint,
+    refuse_policy_only,
     rng_state,
     set_rng_state,
 )
+from lasmp.algo.console import OneLineLogger, network_line, without_network_printout
 
 INTERRUPT_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -58,83 +61,6 @@ class TrainingFaulted(RuntimeError):
     """Too many of an iteration's env-steps faulted (the physics diverged); the message says how many."""
 
 
-class OneLineLogger(Logger):
-    """TensorBoard scalars as rsl_rl's logger writes them, but one terminal line per iteration."""
-
-    step_done = None  # callback() after each env-step of a rollout (the runner's fault check)
-    iteration_done = None  # callback(it) after each iteration's log (the runner's interruption check)
-    iteration_faults: int | None = (
-        None  # this iteration's env-steps whose physics faulted (the runner sets it)
-    )
-
-    def process_env_step(self, rewards, dones, extras, intrinsic_rewards=None) -> None:
-        super().process_env_step(rewards, dones, extras, intrinsic_rewards)
-        if self.step_done is not None:
-            self.step_done()
-
-    def log(
-        self,
-        it,
-        start_it,
-        total_it,
-        collect_time,
-        learn_time,
-        loss_dict,
-        learning_rate,
-        action_std,
-        rnd_weight,
-        **kwargs,
-    ) -> None:
-        try:
-            self._log(it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std)
-        finally:
-            if self.iteration_done is not None:
-                self.iteration_done(it)
-
-    def _log(
-        self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std
-    ) -> None:
-        if self.writer is None:
-            return
-        steps = self.cfg["num_steps_per_env"] * self.num_envs * self.gpu_world_size  # all ranks' env-steps
-        self.tot_timesteps += steps
-        self.tot_time += collect_time + learn_time
-        extras: dict[str, float] = {}
-        for key in dict.fromkeys(k for ep in self.ep_extras for k in ep):
-            values = [float(ep[key]) for ep in self.ep_extras if key in ep]
-            values = [v for v in values if v == v]  # nan: a rate over an empty window
-            if values:
-                extras[key] = statistics.fmean(values)
-                self.writer.add_scalar(key, extras[key], it)
-        self.ep_extras.clear()
-        for key, value in loss_dict.items():
-            self.writer.add_scalar(key if "/" in key else f"Loss/{key}", value, it)
-        self.writer.add_scalar("Loss/learning_rate", learning_rate, it)
-        self.writer.add_scalar("Policy/mean_std", action_std.mean().item(), it)
-        fps = steps / (collect_time + learn_time)
-        self.writer.add_scalar("Perf/total_fps", fps, it)
-        self.writer.add_scalar("Perf/collection_time", collect_time, it)
-        self.writer.add_scalar("Perf/learning_time", learn_time, it)
-        reward = statistics.fmean(self.rewbuffer) if self.rewbuffer else float("nan")
-        if self.rewbuffer:
-            self.writer.add_scalar("Train/mean_reward", reward, it)
-            self.writer.add_scalar("Train/mean_episode_length", statistics.fmean(self.lenbuffer), it)
-        done = it + 1 - start_it
-        eta = datetime.timedelta(seconds=int(self.tot_time / done * (total_it - start_it - done)))
-        fields = [f"it {it + 1}/{total_it}", f"{fps:,.0f} steps/s", f"reward {reward:8.2f}"]
-        for key, label, fmt in (
-            ("Episode/success_rate", "success", ".2f"),
-            ("Curriculum/level", "level", ".0f"),
-        ):
-            if key in extras:
-                fields.append(f"{label} {extras[key]:{fmt}}")
-        if "roa_exp" in loss_dict:
-            fields.append(f"L_exp {loss_dict['roa_exp']:.4f}")
-        if self.iteration_faults is not None:
-            fields.append(f"faults {self.iteration_faults}")
-        print(" | ".join(fields + [f"ETA {eta}"]), flush=True)
-
-
 class LasmpRunner(OnPolicyRunner):
     """`OnPolicyRunner` + checkpoints with config, layout, env and random state; fault guard;
     checkpoint on SIGINT / SIGTERM."""
@@ -147,10 +73,17 @@ class LasmpRunner(OnPolicyRunner):
         device: str = "cpu",
         full_config: dict | None = None,
         max_fault_fraction: float = 0.5,
+        keep_full: int = 2,
     ):
-        super().__init__(env, train_cfg, log_dir=log_dir, device=device)
+        with without_network_printout(lambda: getattr(self, "alg", None)):
+            super().__init__(env, train_cfg, log_dir=log_dir, device=device)
+        if self.gpu_global_rank == 0:
+            obs = env.get_observations()
+            print(network_line("actor", self.alg.get_policy(), obs), flush=True)
+            print(network_line("critic", self.alg.critic, obs), flush=True)
         self.full_config = full_config or {}
         self.max_fault_fraction = max_fault_fraction
+        self.keep_full = keep_full
         self._faults_before = 0  # env.fault_count when the iteration under way began
         self.logger = OneLineLogger(
             log_dir=log_dir,
@@ -240,9 +173,8 @@ class LasmpRunner(OnPolicyRunner):
         self.logger.iteration_faults = faults
         steps = self.cfg["num_steps_per_env"] * self.env.num_envs
         if faults > self.max_fault_fraction * steps:
-            it = self.alg.iteration + 1  # the learner's iteration under way, counted from 1
             raise TrainingFaulted(
-                f"physics faults: {faults:,} of the {steps:,} env-steps of iteration {it} "
+                f"physics faults: {faults:,} of the {steps:,} env-steps of iteration {self.alg.iteration} "
                 f"faulted ({faults / steps:.0%}, more than runner.max_fault_fraction={self.max_fault_fraction}). The "
                 "simulation diverges (MuJoCo errors or warnings, non-finite state, runaway joints): check "
                 "env.sim.dt_s, env.control.action_scale, the trajectory file and the robots' parameters "
@@ -317,6 +249,18 @@ class LasmpRunner(OnPolicyRunner):
             data["other_ranks"] = self._other_ranks
             data["world_size"] = self.gpu_world_size
         atomic_torch_save(data, path)
+        run_dir = self.logger.log_dir
+        if run_dir is not None and Path(path).parent.resolve() == Path(run_dir).resolve():
+            self._keep_newest_full(run_dir)
+
+    def _keep_newest_full(self, run_dir: str) -> None:
+        """The newest `keep_full` full checkpoints of the run stay; older ones become policy
+        checkpoints, named in one line (never silently)."""
+        converted, left = keep_newest_full(run_dir, self.keep_full)
+        if converted or left:
+            said = [f"kept as policy checkpoints: {', '.join(converted)}"] if converted else []
+            said += [f"left as they were: {'; '.join(left)}"] if left else []
+            print(f"checkpoints (runner.keep_full={self.keep_full}): {'; '.join(said)}", flush=True)
 
     def _episode_log_state(self) -> dict:
         """The logger's running episode sums and its windows of finished episodes: without them the
@@ -346,11 +290,8 @@ class LasmpRunner(OnPolicyRunner):
         """Load a checkpoint: a path, or a `read_checkpoint` result (a tool reads its file once)."""
         data = path if isinstance(path, dict) else read_checkpoint(path, map_location or self.device)
         check_compatible(data, self.env)
-        if is_policy_only(data) and (load_cfg is None or load_cfg.get("optimizer", True)):
-            raise CheckpointError(
-                f"{data['path']} is a policy checkpoint (no optimizer states): play or evaluate it; to resume "
-                "training, give the run's own model_<N>.pt"
-            )
+        if load_cfg is None or load_cfg.get("optimizer", True):
+            refuse_policy_only(data)
         run_wanted = load_cfg is None or load_cfg.get("env_run_state", True)
         if self.is_distributed or data.get("other_ranks"):
             data = self._this_ranks_state(data, run_wanted and bool((data.get("env_state") or {}).get("run")))

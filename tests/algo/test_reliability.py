@@ -262,7 +262,8 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
         "precision": "float32",
         "desired_kl": 1e-6,
     }
-    straight = train(tiny(tmp_path / "a", steps=5, runner={"max_iterations": 4}, algo=algo, **over))
+    keep = {"max_iterations": 4, "keep_full": 4}  # model_1.pt, the resume's start, stays full
+    straight = train(tiny(tmp_path / "a", steps=5, runner=keep, algo=algo, **over))
     resume = str(tmp_path / "a" / "model_1.pt")
     resumed = train(
         tiny(tmp_path / "b", steps=5, runner={"max_iterations": 2}, algo=algo, resume=resume, **over)

@@ -315,20 +315,6 @@ def test_curriculum_state_round_trips_through_the_env():
     assert other.curriculum.level == 9
 
 
-def test_a_checkpoint_holding_the_readout_under_its_former_name_resumes_exactly():
-    """Checkpoints written before the readout was named `SceneReadout` hold it as a `Readout`."""
-    env = make(2)
-    env.step(torch.zeros(2, 12))
-    saved = env.state_dict()
-    saved["run"]["attrs"]["readout"]["class"] = "Readout"
-    resumed = make(2, seed=1)
-    assert resumed.load_state_dict(saved)
-    resumed.rng.bit_generator.state = env.rng.bit_generator.state  # the runner restores it alike
-    for _ in range(5):
-        actions = 0.3 * torch.randn(2, 12, generator=torch.Generator().manual_seed(0))
-        assert torch.equal(env.step(actions)[0]["critic"], resumed.step(actions)[0]["critic"])
-
-
 def test_actions_of_wrong_shape_or_nan_are_refused():
     env = make(2)
     with pytest.raises(ValueError, match="shape"):

@@ -17,7 +17,6 @@ from lasmp.envs.rough_static.cfg import RoughStaticCfg
 from lasmp.envs.rough_static.env import RoughStaticEnv
 from lasmp.envs.rough_static.scene import HFIELD_NAME
 from lasmp.envs.rough_static.state import StepState
-from lasmp.plainstate import pack
 from lasmp.robots import a1
 
 
@@ -231,27 +230,3 @@ def test_same_seed_gives_identical_observations():
     a, b = run(7), run(7)
     assert torch.equal(a, b)
     assert not torch.equal(a[0], run(8)[0])
-
-
-def test_a_checkpoint_whose_robots_carry_platform_factors_resumes_exactly():
-    """R-S checkpoints written while the robot layer drew the platform's gain factors for both tasks
-    hold the robots as `Intrinsics`, with those factors, and the step state as a `RoughStepState`: they
-    resume, and the episodes go on alike."""
-    env = make(3)
-    env.step(zeros(env))
-    saved = env.state_dict()
-    saved["run"]["attrs"]["last_state"]["class"] = "RoughStepState"
-    intrinsics = saved["run"]["attrs"]["intrinsics"]
-    intrinsics["class"] = "Intrinsics"  # the older form: the robot's fields, then the platform's
-    intrinsics["fields"].update(
-        platform_kp_factor=pack(np.ones((3, 6))), platform_kd_factor=pack(np.full((3, 6), 0.025))
-    )
-    resumed = make(3, seed=1)
-    assert resumed.load_state_dict(saved)
-    resumed.rng.bit_generator.state = env.rng.bit_generator.state  # the runner restores it alike
-    assert type(resumed.intrinsics) is type(env.intrinsics)
-    np.testing.assert_array_equal(resumed.intrinsics.x_imp(), env.intrinsics.x_imp())
-    gen = torch.Generator().manual_seed(0)
-    for _ in range(5):
-        actions = 0.3 * torch.randn(3, 12, generator=gen)
-        assert torch.equal(env.step(actions)[0]["critic"], resumed.step(actions)[0]["critic"])

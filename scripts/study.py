@@ -2,7 +2,7 @@
 
     python scripts/study.py plan                      # what is done, what is left
     python scripts/study.py train METHOD SEED [--until N]   # train (or resume) to N iterations (default 450)
-    python scripts/study.py evaluate METHOD SEED [--at N]    # all of Xi_eval on model_<N-1>.pt
+    python scripts/study.py evaluate METHOD SEED [--at N]    # all of Xi_eval on model_<N-1>.pt (or policy_<N-1>.pt)
     python scripts/study.py next                      # the first unfinished step, trained or evaluated
     python scripts/study.py summary [--paper-columns] # results/study/summary.json from what is evaluated
     python scripts/study.py compare                   # the fast learner against float32 (issue 24, item 4)
@@ -133,6 +133,13 @@ def last_iteration(d: Path) -> int:
     return max(its, default=-1)
 
 
+def saved_at(d: Path, it: int) -> Path:
+    """The checkpoint of iteration `it` in run directory d: its full model_<it>.pt, or the policy_<it>.pt
+    that `runner.keep_full` turns an older save into once the run goes on (a missing one: the full name)."""
+    full, policy = d / f"model_{it}.pt", d / f"policy_{it}.pt"
+    return policy if not full.exists() and policy.exists() else full
+
+
 def execute(cmd: list[str], log: Path) -> None:
     """Run cmd niced, after appending it to log with the time and the commit; a log in runs/study/ is
     mirrored in results/study/ (committed, so the commands outlive the machine)."""
@@ -199,7 +206,7 @@ def record_run(method: str, seed: int, at: int) -> None:
     atomic_write_text(out / "config.yaml", (d / "config.yaml").read_text())
     policy = out / f"policy_{at - 1}.pt"
     if not policy.exists():
-        policy_checkpoint(d / f"model_{at - 1}.pt", policy)
+        policy_checkpoint(saved_at(d, at - 1), policy)
     rows = windows(truncated(read_scalars(d), at - 1), 10)
     curves = {"run_dir": str(d.relative_to(ROOT)), "windows": rows}
     atomic_write_text(out / f"curves_{at}.json", json.dumps(curves))
@@ -218,7 +225,7 @@ def controllers(method: str) -> list[str | None]:
 
 
 def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
-    ckpt = run_dir(method, seed) / f"model_{at - 1}.pt"
+    ckpt = saved_at(run_dir(method, seed), at - 1)
     if not ckpt.exists():
         raise SystemExit(f"{ckpt} does not exist: train {method} seed {seed} to {at} iterations first")
     for controller in controllers(method):

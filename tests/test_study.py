@@ -260,3 +260,15 @@ def test_the_table_with_paper_puts_every_row_of_the_papers_table_ii_below_ours_m
             + ("  |  |  |" if wide else "")
         )
         assert {r.count("|") for r in rows} == {rows[0].count("|")}  # every row as wide as the header
+
+
+def test_a_saved_iteration_is_its_full_checkpoint_or_the_policy_checkpoint_keep_full_turned_it_into(
+    study, tmp_path
+):
+    run = tmp_path / "run"
+    run.mkdir()
+    assert study.saved_at(run, 449) == run / "model_449.pt"  # neither: the name a message gives
+    (run / "policy_449.pt").write_bytes(b"")
+    assert study.saved_at(run, 449) == run / "policy_449.pt"
+    (run / "model_449.pt").write_bytes(b"")
+    assert study.saved_at(run, 449) == run / "model_449.pt"

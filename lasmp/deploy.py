@@ -16,13 +16,8 @@ import torch
 from rsl_rl.utils import resolve_class, resolve_obs_groups
 from tensordict import TensorDict
 
-from lasmp.algo.checkpoint import (
-    check_compatible,
-    checkpoint_cfg,
-    not_fitting,
-    read_checkpoint,
-    set_rng_state,
-)
+from lasmp.algo.checkpoint import check_compatible, not_fitting, read_checkpoint, set_rng_state
+from lasmp.checkpoint_cfg import checkpoint_cfg
 from lasmp.envs.registry import make_env
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
 

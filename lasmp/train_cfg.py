@@ -17,6 +17,7 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf
 
+from lasmp.algo.precision import PRECISIONS
 from lasmp.algo.symmetry import supports_mirror
 from lasmp.config import ConfigError, build_env_cfg, check_known_keys
 from lasmp.envs import registry
@@ -27,7 +28,6 @@ CRITIC_CLASS = "rsl_rl.models:MLPModel"
 ALGORITHM_CLASS = "lasmp.algo.ppo_roa:PPOROA"
 # the tasks of the task registry (lasmp/envs/registry.py), also their options in the Hydra config group `env`
 TASKS = tuple(registry.TASKS)
-PRECISIONS = ("auto", "float32", "bfloat16")  # algo.precision (lasmp/algo/precision.py)
 # runner.logger -> (rsl_rl's writer class, the package it imports, the extra that installs it); docs/logging.md
 LOGGERS: dict[str, tuple[str, str, str] | None] = {
     "tensorboard": None,  # rsl_rl's default: torch's SummaryWriter

@@ -1,12 +1,28 @@
-"""lasmp's modules form no import cycle, counting imports inside functions and the package
-`__init__` files an import runs (DESIGN: arrows point down, no two modules import each other)."""
+"""lasmp's imports point down its layers (docs/layout.md) and form no cycle, counting imports
+inside functions and the package `__init__` files an import runs."""
 
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "lasmp"
+# docs/layout.md's layers, top first: a module imports only from the layers below its own, never
+# from another package of its layer (the learner and the envs do not know each other)
+LAYERS = (
+    ("lasmp.train", "lasmp.play", "lasmp.hydra_cli"),
+    ("lasmp.eval", "lasmp.render"),
+    ("lasmp.deploy",),
+    ("lasmp.checkpoint_cfg",),
+    ("lasmp.train_cfg",),
+    ("lasmp.motions",),
+    ("lasmp.algo", "lasmp.envs"),
+    ("lasmp.modules",),
+    ("lasmp.robots", "lasmp.config", "lasmp.plainstate", "lasmp.rundir"),
+    ("lasmp.atomic",),
+)
 
 
 def module_name(path: Path, package: Path) -> str:
@@ -90,3 +106,39 @@ def test_the_graph_counts_imports_inside_functions_relative_imports_and_packages
 def test_lasmp_has_no_import_cycle():
     cycle = find_cycle(import_graph())
     assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def _top(module: str) -> str:
+    """The package or module of lasmp a module belongs to: lasmp.algo for lasmp.algo.runner."""
+    return ".".join(module.split(".")[:2])
+
+
+def test_every_import_points_down_the_layers():
+    graph = {m: targets for m, targets in import_graph().items() if m != "lasmp"}
+    rank = {top: i for i, layer in enumerate(LAYERS) for top in layer}
+    unplaced = sorted({_top(m) for m in graph} - set(rank))
+    assert not unplaced, f"modules in no layer of LAYERS (docs/layout.md): {unplaced}"
+    upward = [
+        f"{a} -> {b}"
+        for a, targets in graph.items()
+        for b in targets
+        if _top(a) != _top(b) and rank[_top(b)] <= rank[_top(a)]
+    ]
+    assert not upward, "imports that do not point down the layers: " + ", ".join(sorted(upward))
+
+
+def test_the_learner_loads_neither_the_envs_nor_the_training_config():
+    """A fresh interpreter: importing the learner brings in no physics, no Hydra, no env, no config."""
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys, lasmp.algo.ppo_roa, lasmp.algo.runner; "
+            "print(' '.join(m for m in ('mujoco', 'hydra', 'lasmp.envs', 'lasmp.train_cfg') if m in sys.modules))",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == [], f"importing lasmp.algo loaded {out.stdout.split()}"

@@ -19,7 +19,8 @@ from testkit import tiny
 
 import lasmp.train
 import lasmp.train_cfg
-from lasmp.algo.checkpoint import CheckpointError, checkpoint_cfg, read_checkpoint
+from lasmp.algo.checkpoint import CheckpointError, read_checkpoint
+from lasmp.checkpoint_cfg import checkpoint_cfg
 from lasmp.config import ConfigError
 from lasmp.eval.curves import read_scalars
 from lasmp.train import train

@@ -1,11 +1,12 @@
-"""Checkpoint files: writing, reading, compatibility checks, the latest one of a run, its config.
+"""Checkpoint files: writing, reading, compatibility checks, the latest one of a run.
 
 A checkpoint (format "lasmp-checkpoint-v1") is a dict saved with `torch.save` that holds only tensors,
 numbers, strings and plain containers, and is read with `torch.load(weights_only=True)`: loading a
 file from elsewhere never runs code (the env's running state is stored by `lasmp.plainstate`):
 - the learner's state (`LasmpRunner.save`: all networks with their normalizers, both optimizers);
 - `iter`: the last *completed* iteration (a resume continues at iter + 1);
-- `config`: the resolved TrainCfg as a plain dict; `obs_layout` and `num_actions`;
+- `config`: the resolved TrainCfg as a plain dict (`lasmp.checkpoint_cfg` rebuilds it); `obs_layout`
+  and `num_actions`;
 - `env_state`: the env's own state: the curriculum's level and window, and under "run" every env's
   running state (physics, per-env model fields, buffers, trajectories, intrinsics), so that a
   resume continues bit for bit (older checkpoints lack "run": their envs restart their episodes);
@@ -37,6 +38,9 @@ from lasmp.atomic import atomic_open
 
 CHECKPOINT_FORMAT = "lasmp-checkpoint-v1"
 REQUIRED_KEYS = ("actor_state_dict", "critic_state_dict", "config", "obs_layout", "num_actions", "iter")
+# the envs' running-state format (BaseEnv.RUN_STATE_FORMAT) that stores it as plain data: what
+# `convert_trusted` writes (a test holds it equal to the env's)
+PLAIN_RUN_STATE_FORMAT = 3
 
 
 class CheckpointError(ValueError):
@@ -162,9 +166,7 @@ def convert_trusted(src: str | Path, dst: str | Path) -> Path:
         raise CheckpointError(f"{src} is not a lasmp checkpoint (no format '{CHECKPOINT_FORMAT}')")
     run = (data.get("env_state") or {}).get("run")
     if run is not None:
-        from lasmp.envs.base_env import BaseEnv
-
-        run.update(format=BaseEnv.RUN_STATE_FORMAT, sim=pack(run["sim"]), attrs=pack(run["attrs"]))
+        run.update(format=PLAIN_RUN_STATE_FORMAT, sim=pack(run["sim"]), attrs=pack(run["attrs"]))
     data.pop("path", None)
     atomic_torch_save(data, dst)
     read_checkpoint(dst)  # the result must load safely
@@ -313,37 +315,6 @@ def set_rng_state(state: dict, env_rng: np.random.Generator) -> None:
     if "torch_cuda" in state and torch.cuda.is_available():
         torch.cuda.set_rng_state_all(state["torch_cuda"])
     env_rng.bit_generator.state = state["numpy_env"]
-
-
-def checkpoint_cfg(
-    data: dict, num_envs: int, seed: int, trajectories: str | None = None, env_overrides: dict | None = None
-):
-    """The TrainCfg saved in a checkpoint, with only num_envs, seed (and trajectory file, and the
-    given nested env overrides) changed; CheckpointError if today's code cannot rebuild it."""
-    from omegaconf import OmegaConf
-
-    from lasmp.train_cfg import to_train_cfg
-
-    if not data.get("config"):
-        raise CheckpointError(f"checkpoint {data['path']} carries no config to rebuild the policy from")
-    try:
-        conf = OmegaConf.create(data["config"])
-        conf.env.num_envs = int(num_envs)
-        conf.seed = int(seed)
-        conf.device = "cpu"
-        conf.resume = None
-        conf.runner.log_dir = None
-        conf.runner.logger = (
-            "tensorboard"  # it logs nothing: a W&B or Neptune run plays without their package
-        )
-        if trajectories is not None:
-            conf.env.trajectory.file = str(trajectories)
-        conf.env = OmegaConf.merge(conf.env, OmegaConf.create(env_overrides or {}))
-        return to_train_cfg(conf)
-    except Exception as err:  # unknown/removed keys, out-of-range values: the code moved on
-        raise CheckpointError(
-            f"checkpoint {data['path']} has a config this code cannot rebuild: {err}"
-        ) from err
 
 
 def main(argv=None) -> int:

@@ -24,8 +24,7 @@ from pathlib import Path
 
 import torch
 
-from lasmp.train_cfg import PRECISIONS
-
+PRECISIONS = ("auto", "float32", "bfloat16")  # the values of algo.precision
 BF16_CPU_FLAGS = ("avx512_bf16", "amx_bf16")  # x86 /proc/cpuinfo flags of native bfloat16 matrix products
 # (ours) bfloat16 autocast pays on a CPU only where its matrix products measure at least this much
 # faster than float32's: the update also pays for the casts (docs/performance.md, "A third CPU")

@@ -16,7 +16,8 @@ from hydra import compose, initialize_config_dir
 from tensordict import TensorDict
 from testkit import hostile_checkpoint, tiny
 
-from lasmp.algo.checkpoint import CheckpointError, convert_trusted, read_checkpoint
+from lasmp.algo.checkpoint import PLAIN_RUN_STATE_FORMAT, CheckpointError, convert_trusted, read_checkpoint
+from lasmp.envs.base_env import BaseEnv
 from lasmp.plainstate import PlainStateError, pack, unpack
 from lasmp.train import make_runner, train
 from lasmp.train_cfg import register_configs
@@ -146,6 +147,10 @@ def test_plain_state_refuses_a_class_the_live_env_does_not_hold():
         unpack(saved, {"pair": _Pair(torch.zeros(1), np.zeros(1))})
     with pytest.raises(PlainStateError, match="cannot be stored"):
         pack({"f": open})
+
+
+def test_the_converter_writes_the_running_state_format_the_envs_read():
+    assert PLAIN_RUN_STATE_FORMAT == BaseEnv.RUN_STATE_FORMAT
 
 
 def test_an_older_pickled_checkpoint_is_refused_with_the_convert_command_and_converts_on_trust(tmp_path):

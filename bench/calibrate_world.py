@@ -54,7 +54,8 @@ def _platform(hz: float, feedforward: bool, mass_kg: float = 800.0) -> dict:
 
 # the chosen world: the config defaults (lasmp/envs/moving_platform/cfg.py: PlatformCfg)
 FINAL = _platform(1.2 / TWO_PI, False, 1.0e5)
-# name -> (trajectory construction, env overrides); the first worlds are the first readings we tried
+# name -> (trajectory construction, env overrides): the candidate worlds of
+# docs/world.md#how-the-readings-were-found-candidate-worlds
 WORLDS = {
     "interp_4hz": ({"kind": "interpolating"}, {"platform": _platform(4.0, True)}),
     "deg5_4hz": ({"degree": 5}, {"platform": _platform(4.0, True)}),
@@ -78,8 +79,7 @@ WORLDS = {
     "deg10_4hz_translation_only": ({"channels": "x y z"}, {"platform": _platform(4.0, True)}),
     "deg10_4hz_still": ({"channels": ""}, {"platform": _platform(4.0, True)}),
     "final": ({}, {"platform": FINAL}),
-    # the platform drive re-measured after the published inertials and the elliptic cone: the earlier
-    # final world (1.0 rad/s) fell below the paper's power band; 1.2 is the default since
+    # the platform drive's omega_n around the default (docs/world.md#the-platform-drive)
     "final_wn1.0": ({}, {"platform": {**FINAL, "omega_n_rad_s": 1.0}}),
     "final_wn1.1": ({}, {"platform": {**FINAL, "omega_n_rad_s": 1.1}}),
     "final_wn1.3": ({}, {"platform": {**FINAL, "omega_n_rad_s": 1.3}}),

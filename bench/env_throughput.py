@@ -33,7 +33,7 @@ from lasmp.envs.backends import make_backend
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
-RAW_SAMPLES = 200  # env states replayed on the raw backend; with 50 the ratio moved by 2 points between runs
+RAW_SAMPLES = 200  # env states replayed on the raw backend; fewer leave the ratio noisy (docs/performance.md)
 
 
 def measure(env: MovingPlatformEnv, steps: int, raw_samples: int = RAW_SAMPLES) -> dict:
@@ -41,9 +41,8 @@ def measure(env: MovingPlatformEnv, steps: int, raw_samples: int = RAW_SAMPLES) 
     states: before every (steps // raw_samples)-th env step the physics state it meets is recorded
     (inside the env's step, the recording's time left out), and right after that env step a second
     backend of the same kind and model restarts from it and takes one timed step. Both rates are
-    thus measured over the same minutes: on a shared machine, speed drifts by 10 % and more between
-    one minute and the next. The raw rate's own noise shrinks with the samples: with 50, the env's
-    physics came out up to 2 % faster or slower than the raw steps from run to run."""
+    thus measured over the same minutes, since on a shared machine the speed drifts between minutes;
+    the raw rate's own noise shrinks with the samples (docs/performance.md#the-environment)."""
     raw_sim = make_backend(env.cfg.backend, env.sim.model, env.num_envs, env.cfg.sim, env.device)
     actions = torch.zeros(env.num_envs, env.num_actions)
     every = max(1, steps // raw_samples)
@@ -115,9 +114,8 @@ def main(argv=None) -> dict:
     args = p.parse_args(argv)
     if args.raw_samples < 1 or args.steps < 1:
         p.error(f"--steps and --raw-samples must be >= 1, got {args.steps} and {args.raw_samples}")
-    if (
-        args.torch_threads > 0
-    ):  # the env's tensor work is small; by default leave the cores to the physics threads
+    # the env's tensor work is small; by default leave the cores to the physics threads
+    if args.torch_threads > 0:
         torch.set_num_threads(args.torch_threads)
     overrides = {
         "num_envs": args.num_envs,

@@ -28,8 +28,8 @@ contact on the boundary of an isotropic cone of slope mu) and `holding_usage` it
 `fixed_tilt_slip` is the coarse protocol of tests/test_friction_cone.py (fixed tilts, see there).
 
 Step cost: single-model `mj_step` time of the robot world (relaxed stance, foot friction 1, the
-platform tilted 10 deg), settings interleaved in one run, as a ratio to today's setting (pyramidal,
-impratio 1, no noslip); `--env-envs N` adds the moving-platform env (Stand Still, its default
+platform tilted 10 deg), settings interleaved in one run, as a ratio to the "pyramidal" setting
+(impratio 1, no noslip); `--env-envs N` adds the moving-platform env (Stand Still, its default
 randomization and trajectories, N envs on `mujoco.batch`), timed the same way.
 
     python bench/friction_cone.py --json
@@ -58,7 +58,7 @@ from lasmp.envs.moving_platform import scene
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg, PlatformCfg
 from lasmp.robots import a1
 
-# name -> (cone, impratio, noslip_iterations); "pyramidal" is today's setting, the cost reference
+# name -> (cone, impratio, noslip_iterations); "pyramidal" is the cost reference
 SETTINGS: dict[str, tuple[str, float, int]] = {
     "pyramidal": ("pyramidal", 1.0, 0),
     "pyramidal_noslip3": ("pyramidal", 1.0, 3),
@@ -351,9 +351,10 @@ def fixed_tilt_slip(
     return {
         "slip_m": np.linalg.norm((end - start)[:, :2], axis=1),  # over the hold
         "last_s_slip_m": np.linalg.norm((end - last)[:, :2], axis=1),  # over its last second
+        # at the hold's start
         "friction_usage": usage,
         "holding_usage": holding,
-    }  # at the hold's start
+    }
 
 
 def step_cost(settings: list[str], steps: int, rounds: int) -> dict:

@@ -48,9 +48,8 @@ def fall_tilt(axis: str, yaw: float, sim: dict, path: str) -> dict:
         _, _, done, extras = env.step(torch.zeros(1, 12))
         if done[0]:
             break
-        tilt = float(
-            np.arccos(np.clip(float(env.readout.r_wp[0, 2, 2]), -1.0, 1.0))
-        )  # the platform's, not the reference's
+        # the platform's, not the reference's
+        tilt = float(np.arccos(np.clip(float(env.readout.r_wp[0, 2, 2]), -1.0, 1.0)))
         if creep is None and tilt >= CREEP_AT_RAD:
             creep = float(np.linalg.norm(env.readout.p_body_p[0, :2].numpy()))
     fell = bool(done[0]) and not bool(extras["time_outs"][0])

@@ -68,7 +68,7 @@ def main(argv=None) -> dict:
     with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
         cfg = to_train_cfg(compose("config", overrides=overrides))
     with contextlib.redirect_stdout(io.StringIO()) if args.json else contextlib.nullcontext():
-        runner = make_runner(cfg, log_dir=None)  # rsl_rl prints the networks
+        runner = make_runner(cfg, log_dir=None)  # prints a line per network (lasmp/algo/console.py)
     totals = dict.fromkeys(("physics", "inference", "env_step", "update_ppo_and_roa", "update_roa"), 0.0)
     timed(runner.env.sim, "step", totals, "physics")
     timed(runner.alg, "act", totals, "inference")
@@ -106,7 +106,7 @@ def main(argv=None) -> dict:
         "update_ppo_s": round((totals["update_ppo_and_roa"] - totals["update_roa"]) / n, 3),
         "update_roa_s": round(totals["update_roa"] / n, 3),
         "policy_steps_per_s": round(steps / wall, 1),
-        # the learner's share against physics (the lean-and-sound issue's target: <= 1.5)
+        # the learner's share against physics (its target: docs/performance.md#training)
         "learner_over_physics": round(totals["update_ppo_and_roa"] / totals["physics"], 3),
     }
     if args.json:

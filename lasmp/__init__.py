@@ -3,9 +3,8 @@
 import os
 
 # torch's OpenMP threads (libgomp) spin for a while after each parallel region before they sleep. In
-# training the policy's forward pass runs right before the physics step, so the spinning threads took
-# cores from MuJoCo's own worker threads and slowed the physics (measured: docs/performance.md,
-# "Threads"). A short spin still bridges the learner's back-to-back parallel
-# regions. libgomp reads the variable when torch loads it, so it is set on importing lasmp (before
-# torch); a value already set wins.
+# training the policy's forward pass runs right before the physics step, so spinning threads would take
+# cores from MuJoCo's own worker threads (docs/performance.md#threads). A short spin still bridges the
+# learner's back-to-back parallel regions. libgomp reads the variable when torch loads it, so it is set
+# on importing lasmp (before torch); a value already set wins.
 os.environ.setdefault("GOMP_SPINCOUNT", "10000")

@@ -112,7 +112,7 @@ class ControlCfg:
 
 @dataclass
 class ObservationsCfg:
-    history_length: int = 20  # H, SPEC §7
+    history_length: int = 20  # H (docs/method.md#inputs)
     clip: float = 100.0  # every observation is clipped to +-clip (a NaN guard, not a normalizer)
 
     def validate(self, p: str):

@@ -260,9 +260,8 @@ def main(argv: list[str] | None = None) -> int:
             if args.scenario:  # the env holds the motion in memory; the file was only the way in
                 shutil.rmtree(Path(trajectories).parent, ignore_errors=True)
         if args.steps is None:
-            args.steps = (
-                env.max_episode_length - 1 if args.scenario else 500
-            )  # the last frame before the reset
+            # the last frame before the reset
+            args.steps = env.max_episode_length - 1 if args.scenario else 500
         if args.benchmark_episode is not None:
             use_benchmark_episodes(env, args.benchmark, args.benchmark_episode)
     except (CheckpointError, TrajectoryFileError, ConfigError, ValueError) as err:

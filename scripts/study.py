@@ -5,7 +5,7 @@
     python scripts/study.py evaluate METHOD SEED [--at N]    # all of Xi_eval on model_<N-1>.pt (or policy_<N-1>.pt)
     python scripts/study.py next                      # the first unfinished step, trained or evaluated
     python scripts/study.py summary [--paper-columns] # results/study/summary.json from what is evaluated
-    python scripts/study.py compare                   # the fast learner against float32 (issue 24, item 4)
+    python scripts/study.py compare                   # the fast learner against float32 (docs/performance.md)
     python scripts/study.py table [--wide] [--paper]  # the README's (docs/results.md's) table, from summary.json;
                                                       # --paper: the paper's Table II rows below ours
 
@@ -19,21 +19,19 @@ LAS-MP's seeds 0, 1 and 2 come first, then seed 0's continuation to 1,000 iterat
 policy), then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000 iterations.
 
 Every run trains with the bfloat16 learner (`algo.precision=bfloat16`: bfloat16 autocast, fused Adam,
-compiled MLPs) (ours): `auto` chooses by the CPU, and the study's machines differ. LAS-MP's first
-seeds ran float32 on a CPU where bfloat16 did not pay, every other run bfloat16, and the one LAS-MP
-seed retrained under bfloat16 collided in 0.092 of Xi_eval's first 2,000 episodes against its float32
-run's 0.137 (results/study/README.md, "The learner"). One learner for every row keeps that out of the
-comparison; those float32 runs are kept in results/study/float32_learner/ as rows of their own.
-A CPU without native bfloat16 (AVX2 only: autocast there is about 20 times slower) is refused.
+compiled MLPs) (ours): `auto` chooses by the CPU, and the study's machines differ, so one learner for
+every row keeps the learner out of the comparison (docs/results.md#one-learner-for-every-row).
+LAS-MP's float32 runs are kept in results/study/float32_learner/ as rows of their own. A CPU without
+native bfloat16 (AVX2 only: autocast there is emulated, far slower) is refused.
 
-The study's first pass, under rsl_rl's entropy bonus (`algo.entropy_coef=0.01`, the default until
-that pass showed it degrades LAS-MP from curriculum level 10 on: docs/results.md), is kept in
-results/study/entropy_0.01/ (its runs in runs/study_entropy_0.01/). It holds issue 24's check that
-the fast learner (bfloat16 autocast) learns as float32 does: LAS-MP with `algo.precision=float32`,
-seeds 0 and 1, against that pass's LAS-MP seeds 0 and 1 on Xi_eval's first 2,000 episodes;
-`compare` tabulates it from there. The second pass, without a bonus (the default until it showed the
-policy crouching), is kept in results/study/entropy_0/ (its runs in runs/study_entropy_0/); the third,
-under the default 0.003, is the study.
+Two earlier passes, each under another entropy bonus (docs/results.md#the-entropy-bonus), are kept
+beside the study. The first, under rsl_rl's 0.01, in results/study/entropy_0.01/ (its runs in
+runs/study_entropy_0.01/), with the check that the fast learner (bfloat16 autocast) learns as float32
+does: LAS-MP with `algo.precision=float32`, seeds 0 and 1, against that pass's LAS-MP seeds 0 and 1 on
+Xi_eval's first 2,000 episodes, which `compare` tabulates
+(docs/performance.md#does-the-fast-learner-learn-the-same). The second, without a bonus, in
+results/study/entropy_0/ (its runs in runs/study_entropy_0/). The study itself runs under the default
+0.003.
 """
 
 from __future__ import annotations
@@ -370,7 +368,7 @@ def table(summary_path: Path | None = None, wide: bool = False, paper: bool = Fa
 
 
 def paper_rows(columns: dict, wide: bool) -> list[str]:
-    """The paper's Table II (lasmp.eval.paper, SPEC §14) as rows of our table, each marked as the
+    """The paper's Table II (lasmp.eval.paper) as rows of our table, each marked as the
     paper's, `mean ± the paper's std` (over what, it does not say); a column it does not report stays
     empty. Its budget differs from ours: 8,192 envs x 4,000 iterations."""
     from lasmp.eval.paper import PAPER_ROWS, paper_row

@@ -8,7 +8,7 @@ import pytest
 @pytest.fixture(autouse=True)
 def eager_learners(request, monkeypatch):
     """Keep the in-process tests' learners eager: `algo.precision=auto` compiles every new learner's
-    networks, about 8 s per tiny training, over hundreds of them. A test that asks for compiled MLPs
+    networks, seconds per tiny training, over hundreds of them. A test that asks for compiled MLPs
     (compile_mlps=true) still gets them, and tests/algo/test_precision.py tests `auto` itself, compile
     included. Subprocess tests (the real CLI) run the defaults as a user does."""
     if request.module.__name__.endswith("test_precision"):

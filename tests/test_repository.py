@@ -1,4 +1,4 @@
-"""The repository stays light to clone (issue 43): what git tracks under results/ and resources/ is
+"""The repository stays light to clone: what git tracks under results/ and resources/ is
 records and policies, never a training run's state, and evaluate.py's default output stays out of git.
 
 These read the git checkout the tests run in; from an unpacked archive (no git) they skip.

@@ -160,9 +160,8 @@ class BaseEnv(VecEnv):
                 raise PlainStateError(
                     f"saved running state holds {sorted(saved_attrs)}, this env {sorted(live)}"
                 )
-            attrs = unpack(
-                saved_attrs, live, self.device, "running state", self.RUN_STATE_CLASSES
-            )  # checked before any change
+            # checked before any change
+            attrs = unpack(saved_attrs, live, self.device, "running state", self.RUN_STATE_CLASSES)
             self.sim.set_state(unpack(saved["sim"], name="physics state"))
             for key, value in attrs.items():
                 setattr(self, key, value)

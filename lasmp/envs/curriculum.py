@@ -1,7 +1,8 @@
-"""Waypoint curriculum (SPEC §5): the task level is the number of trajectory waypoints N.
+"""Waypoint curriculum (docs/environment.md#curriculum-lasmpenvscurriculumpy): the task level is the
+number of trajectory waypoints N.
 
 Training starts at N = level_min and the level rises by one when the success rate at the
-current level reaches `promote_success_rate`, up to level_max. Our choices (SPEC leaves open):
+current level reaches `promote_success_rate`, up to level_max. Our choices (the paper leaves them open):
 - Success = the episode reached the time-out T without a collision.
 - The rate is measured over the last `window_episodes` episodes that ended while the env
   played the current level; episodes of replayed lower levels do not count.

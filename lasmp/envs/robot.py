@@ -85,7 +85,8 @@ class RobotIndex:
         self.collision = ix([model.sensor(f"{b}_collision").adr[0] for b in a1.NON_FOOT_COLLISION_GEOMS])
         self.foot_site = ix([model.site(f).id for f in a1.FOOT_NAMES])
         # the same columns as the readout gathers them: slices where they are even runs (a strided
-        # copy is 5x faster than index_select's gather on a CPU, and gives the same values)
+        # copy is faster than index_select's gather on a CPU, to the same values:
+        # docs/performance.md#the-environment)
         self.joint_qpos_cols, self.joint_qvel_cols, self.joint_act_cols, self.collision_cols = (
             as_slice(i) for i in (self.joint_qpos, self.joint_qvel, self.joint_act, self.collision)
         )

@@ -2,7 +2,7 @@
 
 A benchmark figure is a mean over episodes that differ wildly: a 4-waypoint drift and a 16-waypoint
 0.7 rad tumble count the same. The per-episode record says which episodes fail, and whether the
-world left the robot any chance (issue 24).
+world left the robot any chance (docs/evaluation.md#episodescsvgz).
 
 The platform probe. Each episode's platform motion is played in full (T), whatever the evaluated
 controller did: the evaluation's world (the same env config) with Stand Still in an env whose

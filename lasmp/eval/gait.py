@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 GAIT_KEYS = ("four_feet_share", "longest_air_s")
-LONG_AIR_S = 2.0  # the goal's threshold: an episode with a foot up longer than this (issue 41)
+LONG_AIR_S = 2.0  # the screening's threshold: an episode with a foot up longer than this (docs/screening.md)
 
 
 class GaitTracker:

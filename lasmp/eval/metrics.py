@@ -19,7 +19,7 @@ collision step itself and anything after it are not counted). Columns:
   relative to the platform, so only the world reading ranks it below Stand Still, as the paper does.
 - rotation_deviation_platform_rad (extra column): mean over counted steps of the angle of
   R_pb(0)^T R_pb(t), R_pb = R_wp^T R_wb the trunk's full orientation relative to the platform
-  (the earlier reading of the paper's metric).
+  (the platform-relative reading of the paper's metric: docs/evaluation.md#the-metrics).
 - power_w: mean over counted steps of sum_j max(tau_j q_dot_j, 0).
 An episode with no counted step (a collision on its first step) contributes to the collision
 rate only. Mean and std are over `num_batches` equal, consecutive batches of the benchmark's

@@ -1,4 +1,5 @@
-"""The paper's Table II (SPEC §14): its row for each method we evaluate, to print beside ours.
+"""The paper's Table II: its row for each method we evaluate, to print beside ours (as in
+docs/results.md#the-three-seed-study).
 
 Means with the paper's std (it does not say over what). Keys: Stand Still, the R-S baselines
 (`--controller`) and the policy names of `cfg/policy/` (the LAS-MP ablations).

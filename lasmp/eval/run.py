@@ -53,9 +53,8 @@ class BenchmarkSource:
         self.next_episode += len(ids)
         valid = k < self.num_episodes
         self.episode_of_env[ids] = np.where(valid, k, -1)
-        traj_rows, robot_rows = self.bench.pairing(
-            np.minimum(k, self.num_episodes - 1)
-        )  # fillers replay the last
+        # fillers replay the last
+        traj_rows, robot_rows = self.bench.pairing(np.minimum(k, self.num_episodes - 1))
         traj = self.bench.trajectories.subset(traj_rows)
         pose = self.bench.initial_pose_draws(np.minimum(k, self.num_episodes - 1))
         return traj, traj.n_waypoints, intrinsics_rows(self.bench.robots, robot_rows), pose

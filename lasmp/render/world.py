@@ -73,7 +73,8 @@ def decorate(spec: mujoco.MjSpec, layout: WorldLayout) -> None:
     vis.headlight.ambient = [0.3, 0.3, 0.3]
     vis.headlight.diffuse = [0.3, 0.3, 0.3]
     vis.headlight.specular = [0.05, 0.05, 0.05]
-    vis.quality.shadowsize = 2048  # one shadow pass per frame; 4096 costs ~2x in software GL
+    # one shadow pass per frame; a larger map costs more in software GL (docs/performance.md)
+    vis.quality.shadowsize = 2048
     # the scene's own lights: dimmer, no shadows (one decor light casts them)
     for light in spec.worldbody.lights:
         light.castshadow = False

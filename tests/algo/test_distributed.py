@@ -162,9 +162,9 @@ def test_sigterm_to_the_job_stops_both_ranks_after_the_same_iteration_with_one_c
 
 
 def test_a_signal_that_lands_during_the_stop_collective_is_counted_at_the_next_iteration_end(monkeypatch):
-    """The race that lost a SIGTERM (CI, 2026-12-03): the handler ran while the rank waited in the
-    all-reduce it had given 0 to; the reduced 0 overwrote the handler's record, no rank ever stopped,
-    and torchrun killed the job 30 s later without a checkpoint."""
+    """The race that could lose a SIGTERM: the handler runs while the rank waits in the all-reduce it
+    gave 0 to; were the reduced 0 to overwrite the handler's record, no rank would ever stop, and
+    torchrun would kill the job 30 s later without a checkpoint."""
     from lasmp.algo import distributed as dp
     from lasmp.algo.runner import LasmpRunner
 

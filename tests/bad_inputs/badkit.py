@@ -86,7 +86,7 @@ def _entry(cfg, overrides: list[str]) -> int:
 
     if hasattr(lt, "main"):
         return lt.main(cfg, overrides)
-    # train.py as it was before issue 25
+    # an older train.py, without main(): its train(cfg)
     from lasmp.algo.checkpoint import CheckpointError
     from lasmp.algo.runner import TrainingInterrupted
     from lasmp.config import ConfigError

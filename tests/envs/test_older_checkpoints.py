@@ -1,5 +1,5 @@
-"""Checkpoints written before the envs' classes moved or were renamed (issue 44: the robot layer lost
-the platform, the tasks' parts were named alike) still resume exactly: each task's
+"""Checkpoints written before the envs' classes moved or were renamed (the robot layer lost the
+platform, the tasks' parts were named alike) still resume exactly: each task's
 `_upgrade_run_state` reads the older form of its running state."""
 
 from __future__ import annotations

@@ -34,9 +34,10 @@ T_RAMP_S = 1.0  # smooth velocity ramp of the user-made references
 T_SETTLED_S = 1.5  # checks of the constant-velocity phase start here
 
 
-# The frame and friction tests below need a platform that follows its reference closely: the
-# earlier 4 Hz PD with velocity feedforward. The calibrated default (a 1 rad/s position drive, a
-# low-pass filter of the reference) has its own test, test_position_drive_is_the_filter_of_its_gains.
+# The frame and friction tests below need a platform that follows its reference closely: a 4 Hz PD
+# with velocity feedforward (the real-motion suite's close drive). The calibrated default (a soft
+# position drive, a low-pass filter of the reference) has its own test,
+# test_position_drive_is_the_filter_of_its_gains.
 STIFF_PLATFORM = {"omega_n_rad_s": 2 * np.pi * 4.0, "velocity_feedforward": True, "mass_kg": 800.0}
 
 

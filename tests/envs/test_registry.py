@@ -59,7 +59,6 @@ def test_make_env_builds_the_tasks_env_on_the_cpu_with_the_cpu_backend():
     cfg = build_env_cfg(
         {"num_envs": 1, "sim": {"num_threads": 1}}, schema=registry.env_schema("rough_static")
     )
-    env = registry.make_env(
-        "rough_static", cfg, device="cuda"
-    )  # the learner's device: the physics stays here
+    # the learner's device: the physics stays here
+    env = registry.make_env("rough_static", cfg, device="cuda")
     assert type(env) is registry.TASKS["rough_static"] and env.cfg is cfg and env.device.type == "cpu"

@@ -45,9 +45,8 @@ def test_observation_groups_have_the_moving_platform_sizes():
     assert torch.all(obs["priv_explicit"][:, 7:] == 0)  # static ground: no platform velocities
     assert torch.equal(obs["command"], torch.as_tensor(env.command, dtype=torch.float32))
     assert env.max_episode_length == 1000 and env.num_actions == 12
-    assert (
-        env.state_dict(run=False) == {} and env.state_dict()["run"]["num_envs"] == env.num_envs
-    )  # no curriculum
+    # no curriculum
+    assert env.state_dict(run=False) == {} and env.state_dict()["run"]["num_envs"] == env.num_envs
 
 
 def test_robot_spawns_above_the_terrain_touching_nothing():

@@ -139,10 +139,9 @@ def test_parity_with_cpu_backend(model, ix):
       and velocity sensors. Measured: 6e-7 and 2e-5; the stance is servo- and contact-damped, so
       rounding errors of ~3e-8 per substep don't grow;
     - plus what the solver tolerance itself is worth in that env, measured here as how far C MuJoCo
-      moves when its own tolerance is relaxed to 1e-6. Since the joints have the published A1's
-      friction losses, the solver converges slowly in every env (before them it stopped early in
-      envs 0 and 2, and this slack was 0 there); env 1 also slips (foot friction 0.5 below the
-      platform's 1.0 on the swaying platform).
+      moves when its own tolerance is relaxed to 1e-6. With the joints' friction losses (the
+      published A1's) the solver converges slowly in every env; env 1 also slips (foot friction 0.5
+      below the platform's 1.0 on the swaying platform).
     Foot-contact flags agree exactly: the feet stay planted, far from a make/break threshold."""
     n = 3
     loose = build_model(PLATFORM, PARITY_SIM)

@@ -71,13 +71,8 @@ def test_collision_at_step_k_counts_violations_and_deviations_up_to_k_only():
     m = EpisodeMetrics(2, H)
     start_level(m)
     ok = ([0.0, 0.0, H], np.eye(3), np.zeros(12), np.zeros(12), False)
-    low = (
-        [0.3, 0.4, H - 0.2],
-        rot_z(0.5),
-        np.full(12, 2.0),
-        np.full(12, 1.0),
-        False,
-    )  # 0.2 m low: a violation
+    # 0.2 m low: a violation
+    low = ([0.3, 0.4, H - 0.2], rot_z(0.5), np.full(12, 2.0), np.full(12, 1.0), False)
     crash = ([5.0, 5.0, -3.0], rot_z(3.0), np.full(12, 100.0), np.full(12, 100.0), True)
     after = ([9.0, 9.0, -9.0], rot_z(3.0), np.full(12, 100.0), np.full(12, 100.0), True)
     play(m, 0, [ok, low, ok, crash, after])  # collision at step k = 3: steps 0..2 count
@@ -560,9 +555,8 @@ def test_a_trunk_that_tilts_on_a_level_platform_tilts_in_both_readings():
 def test_yaw_alone_gives_no_world_tilt_even_from_a_tilted_start():
     assert tilts(r_wb=rot_z(1.2), r_wp=np.eye(3))[0] == pytest.approx(0.0, abs=1e-12)
     tilted = rot_x(0.2)
-    world, _ = tilts(
-        r_wb=rot_z(2.5) @ tilted, r_wp=np.eye(3), r_wb0=tilted
-    )  # turned about the world vertical
+    # turned about the world vertical
+    world, _ = tilts(r_wb=rot_z(2.5) @ tilted, r_wp=np.eye(3), r_wb0=tilted)
     assert world == pytest.approx(0.0, abs=1e-9)
 
 

@@ -18,18 +18,18 @@ from lasmp.envs.moving_platform.rewards import RewardsCfg
 
 @dataclass
 class PlatformCfg:
-    size_m: list[float] = field(default_factory=lambda: [2.0, 2.0, 0.2])  # width, length, height, SPEC §3
+    # width, length, height (docs/environment.md#scene)
+    size_m: list[float] = field(default_factory=lambda: [2.0, 2.0, 0.2])
     # (ours) so heavy that the robot does not disturb it at the soft gains below: kp = M omega_n^2, so
-    # the robot's weight sags it m_robot g / kp = 1.2 mm at factor 1 (800 kg would sag 15 cm)
+    # the robot's weight sags it only m_robot g / kp (docs/world.md#the-platform-drive)
     mass_kg: float = 1.0e5
     friction: float = 1.0  # surface friction; a contact uses the larger of foot and platform values
     # The paper's platform gains are unitless factors (Table B). We read the stiffness factor as
     # kp / M in s^-2 per axis (M the platform's mass or inertia about the axis): at factor 1 the axis
-    # is a 2nd-order system of natural frequency omega_n_rad_s = 1 rad/s, and the training range
-    # 1.0-1.5 gives 1.0-1.22 rad/s. The damping factor scales kd = 2 zeta M omega_n / kd_factor_ref,
-    # so the paper's ~0.025 gives damping ratio zeta (its literal reading, zeta ~ 0.01, would leave
-    # the platform ringing). Calibrated against the paper's Stand Still row (bench/calibrate_world.py;
-    # 1.2 since the published A1 and the elliptic cone, which lowered Stand Still's power at 1.0)
+    # is a 2nd-order system of natural frequency omega_n_rad_s. The damping factor scales
+    # kd = 2 zeta M omega_n / kd_factor_ref, so the paper's ~0.025 gives damping ratio zeta (its literal
+    # reading, zeta ~ 0.01, would leave the platform ringing). omega_n is calibrated against the paper's
+    # Stand Still row (bench/calibrate_world.py): docs/world.md#the-platform-drive
     omega_n_rad_s: float = 1.2
     damping_ratio: float = 0.7  # (ours) at kd factor == kd_factor_ref
     kd_factor_ref: float = 0.025  # midpoint of the paper's training damping factor range
@@ -49,7 +49,8 @@ class PlatformCfg:
 class TrajectoryCfg:
     split: str = "train"  # waypoint coordinate ranges: train | test (identical coordinates, N differs)
     duration_s: float = 10.0  # T, also the episode length
-    # waypoints as control points of a B-spline (SPEC §4), or "interpolating" (through them: harder)
+    # waypoints as control points of a B-spline (docs/trajectories.md#construction), or "interpolating"
+    # (through them: harder)
     kind: str = "approximating"
     degree: int = 10  # approximating B-spline degree: calibrated to the paper's 7.12 m / 0.69 m/s (ours)
     file: str | None = None  # a trajectory file (lasmp-trajectories .npz): episodes replay its rows in order

@@ -1,4 +1,5 @@
-"""The moving-platform task's per-env intrinsic parameters (SPEC §6, Table B): the robot's
+"""The moving-platform task's per-env intrinsic parameters (the paper's Table B:
+docs/environment.md#domain-randomization-the-papers-table-b): the robot's
 (`lasmp.envs.robot.RobotIntrinsics`) and the platform's per-axis PD gain factors, drawn at reset on
 the host (numpy) and written into the physics backend's per-env model fields: the robot's, then the
 platform's PD gains. The robot layer knows nothing of a platform: its part is drawn and written there.

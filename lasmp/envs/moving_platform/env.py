@@ -82,9 +82,8 @@ class MovingPlatformEnv(BaseEnv):
         self.writer = IntrinsicsWriter(self.sim, self.gains, self.plf_act_pos, self.plf_act_vel)
         self.intrinsics: Intrinsics = nominal_intrinsics(n, cfg.platform.kd_factor_ref)  # host copy
         self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
-        self.plf_act_adr = torch.as_tensor(
-            model.actuator_actadr[plf_act_pos], device=dev
-        )  # servo targets in `act`
+        # servo targets in `act`
+        self.plf_act_adr = torch.as_tensor(model.actuator_actadr[plf_act_pos], device=dev)
         # the columns the step writes, as slices where they are (evenly spaced runs: faster writes)
         self._plf_pos_ctrl, self._plf_vel_ctrl, self._plf_act = (
             as_slice(ix) for ix in (self.plf_act_pos, self.plf_act_vel, self.plf_act_adr)
@@ -109,9 +108,10 @@ class MovingPlatformEnv(BaseEnv):
             if cc.enabled and self.traj_file is None
             else None
         )
+        # host copy (files, plots, tracking); the step evaluates `traj_dev`
         self.traj = trj.sample(
             n, self.traj_ranges, self.rng, n_waypoints=self.traj_ranges.n_waypoints_min, spline=tc.spline
-        )  # host copy (files, plots, tracking); the step evaluates `traj_dev`
+        )
         self.traj_dev = DevicePoly(self.traj, dev, self.dtype)
         self.traj_level = np.full(n, -1)
 
@@ -163,7 +163,7 @@ class MovingPlatformEnv(BaseEnv):
         # term tracks the reference velocity at mid-step (or damps toward rest, without velocity
         # feedforward). The target is never written: a write to the state between steps makes
         # Batch recompute the position and velocity stages that the last step already computed
-        # (10 % of a step's physics)
+        # (docs/performance.md#the-environment)
         n, dt = self.num_envs, self.dt_s
         t_s = self.episode_length_buf.to(self.dtype) * dt
         if self.cfg.platform.velocity_feedforward:

@@ -1,7 +1,7 @@
 """Reads the task's scene (`scene.py`: the robot on its platform) from the batch's raw arrays into the
-named physical quantities of SPEC §1 and §7: `read_scene` -> `SceneReadout`, the robot's (`read_robot`
--> `RobotReadout` of `lasmp.envs.robot`) and the platform's, relative to each other, at the addresses
-of `SceneIndex` (the robot's `RobotIndex` and the platform's).
+named physical quantities of docs/environment.md#frames and docs/method.md#inputs: `read_scene` ->
+`SceneReadout`, the robot's (`read_robot` -> `RobotReadout` of `lasmp.envs.robot`) and the platform's,
+relative to each other, at the addresses of `SceneIndex` (the robot's `RobotIndex` and the platform's).
 
 Everything here is torch, on the backend's device and dtype, (num_envs, ...). Frames: `w` world, `p` platform (origin at
 the platform's CoM = its geometric centre), `b` trunk (as in `lasmp.envs.robot`: origin at the

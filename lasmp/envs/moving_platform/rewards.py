@@ -1,5 +1,6 @@
-"""LAS-MP reward terms (SPEC §10) as a registry of small pure functions, and their config entry
-`RewardsCfg` (the weights and the terms' shape parameters, declared once: the terms read it).
+"""LAS-MP reward terms (docs/method.md#rewards-lasmpenvsmoving_platformrewardspy) as a registry of
+small pure functions, and their config entry `RewardsCfg` (the weights and the terms' shape
+parameters, declared once: the terms read it).
 
 Each registered term returns its UNWEIGHTED value, shape (num_envs,), as a positive magnitude;
 the sign lives in the weight (`lasmp.envs.rewards` sums them). The paper's 12 terms are split
@@ -19,7 +20,7 @@ coefficients k0..k18 map as:
     k17       -> reg5_contact_time (-k)
     k18       -> reg6_foot_slip (-k)
 
-Our choices (SPEC §10 leaves them open):
+Our choices (the paper leaves them open):
 - reg0/reg1 norms are squared, as in legged_gym.
 - reg4/reg5 are clipped at 0: no term ever pays a bonus for tapping or for lingering.
 - reg4's charge (`RewardsCfg.air_time_charge`): the paper charges a swing at touchdown, so a foot held

@@ -75,9 +75,8 @@ class RoughStaticEnv(BaseEnv):
         self.command = zeros(3)
         self.command_time_left_s = zeros()
         self.push_time_left_s = zeros()
-        self.pushed = torch.zeros(
-            n, dtype=torch.bool, device=dev
-        )  # envs pushed at the start of the last step
+        # envs pushed at the start of the last step
+        self.pushed = torch.zeros(n, dtype=torch.bool, device=dev)
         self.push_dv_mps = zeros(2)  # their added world-frame xy velocity
         self.q_dot_prev = zeros(12)
         self.contact_prev = torch.zeros((n, 4), dtype=torch.bool, device=dev)
@@ -174,9 +173,8 @@ class RoughStaticEnv(BaseEnv):
         dr = self.cfg.domain_rand
         if dr.enabled:
             params = sample_robot_intrinsics(n, dr.ranges, self.rng)
-            # as many uniforms as the platform's gain factors take, unused: the R-S baseline drew them
-            # from the table both tasks share until the robot layer left the platform to its task, and
-            # a seed trains as it did (the study's R-S runs)
+            # as many uniforms as the platform's gain factors take, unused: the random stream stays the
+            # one the R-S baseline's seeds were trained with (the study's R-S runs train as they did)
             self.rng.uniform(size=(n, 12))
         else:
             params = nominal_robot_intrinsics(n)
@@ -205,9 +203,8 @@ class RoughStaticEnv(BaseEnv):
             self.readout = read_robot(self.sim, self.index)  # reset envs: their new state (one pass)
         r = self.readout
         o = proprioception(r, self.action, self.q_nominal)
-        static = torch.zeros(
-            (self.num_envs, 6), dtype=self.dtype, device=self.device
-        )  # x_exp: a still ground
+        # x_exp: a still ground
+        static = torch.zeros((self.num_envs, 6), dtype=self.dtype, device=self.device)
         height = r.p_body_w[:, 2] - self.terrain.height_at(r.p_body_w[:, :2])
         critic = torch.cat(
             [

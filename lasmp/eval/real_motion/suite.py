@@ -13,14 +13,11 @@ heading of its own draws (:meth:`SuiteEpisodes.initial_pose_draws`), whichever s
 
 The platform drive (:data:`PLATFORM_DRIVES`). The suite asks whether a policy survives the motion
 a real vehicle makes, so by default (``close``) the platform follows its reference closely: a 4 Hz
-drive (omega_n = 25.13 rad/s at gain factor 1) with velocity feedforward, on an 800 kg platform
-(the robot's weight sags it 0.2 mm). Measured with Stand Still and benchmark robot 0
-(docs/real_motion.md): RMS tracking error 0.5-5.5 mm, RMS acceleration within 3.2 % of the reference's
-(7 % for the lift's emergency stop). The paper's world (``paper``) drives the platform through a
-1 rad/s position servo: it halves the ship's and the aircraft's RMS acceleration, keeps 2 % of the
-train's track vibration and 27 % of the lift's emergency stop, and lags a cruising bus or train
-by 6-17 m. Every result records this per scenario (``platform_tracking``). Episodes last the
-scenarios' duration, not the training episodes' 10 s.
+drive (omega_n = 25.13 rad/s at gain factor 1) with velocity feedforward, on an 800 kg platform.
+The paper's world (``paper``, the env's defaults) drives the platform through a soft position servo,
+which filters much of a vehicle's motion away. How closely each follows the scenarios:
+docs/real_motion.md#the-platform-drive; every result records it per scenario (``platform_tracking``).
+Episodes last the scenarios' duration, not the training episodes' 10 s.
 """
 
 from __future__ import annotations

@@ -22,6 +22,7 @@ from lasmp.algo.symmetry import supports_mirror
 from lasmp.config import ConfigError, build_env_cfg, check_known_keys
 from lasmp.envs import registry
 from lasmp.envs.registry import env_schema
+from lasmp.modules.obs_groups import EXPLICIT_SELECTIONS
 
 ACTOR_CLASS = "lasmp.modules.policy:LasmpActor"
 CRITIC_CLASS = "rsl_rl.models:MLPModel"
@@ -54,6 +55,18 @@ class PolicyCfg:
     # sampled rollouts, and at 1.0 the noise kept it at level 5 (docs/method.md, curriculum)
     init_noise_std: float = 0.5
 
+    def validate(self, p: str = "policy") -> None:
+        if self.explicit not in EXPLICIT_SELECTIONS:
+            raise ConfigError(
+                f"{p}.explicit must be {' | '.join(EXPLICIT_SELECTIONS)}, got {self.explicit!r}"
+            )
+        if self.use_alignment and self.explicit != "all":
+            raise ConfigError(
+                f"{p}.use_alignment needs {p}.explicit=all (the command is built from platform estimates)"
+            )
+        if self.latent_dim < 1 or self.init_noise_std <= 0:
+            raise ConfigError(f"{p}.latent_dim must be >= 1 and {p}.init_noise_std > 0")
+
 
 @dataclass
 class SymmetryCfg:
@@ -67,6 +80,12 @@ class SymmetryCfg:
     @property
     def enabled(self) -> bool:
         return self.use_data_augmentation or self.use_mirror_loss
+
+    def validate(self, p: str) -> None:
+        if self.mirror_loss_coeff < 0 or (self.use_mirror_loss and self.mirror_loss_coeff == 0):
+            raise ConfigError(
+                f"{p}.mirror_loss_coeff must be >= 0, and > 0 with use_mirror_loss; got {self.mirror_loss_coeff}"
+            )
 
 
 @dataclass
@@ -117,6 +136,35 @@ class AlgoCfg:
     compile_mlps: bool | None = None
     symmetry_cfg: SymmetryCfg = field(default_factory=SymmetryCfg)
 
+    def validate(self, p: str = "algo") -> None:
+        for name in ("learning_rate", "clip_param", "estimator_learning_rate", "max_grad_norm"):
+            if getattr(self, name) <= 0:
+                raise ConfigError(f"{p}.{name} must be > 0, got {getattr(self, name)}")
+        if not 0 < self.gamma <= 1 or not 0 <= self.lam <= 1:
+            raise ConfigError(
+                f"{p}.gamma must be in (0, 1] and {p}.lam in [0, 1], got {self.gamma}, {self.lam}"
+            )
+        if self.roa_lambda < 0:
+            raise ConfigError(f"{p}.roa_lambda must be >= 0, got {self.roa_lambda}")
+        for name in ("num_learning_epochs", "num_mini_batches", "estimator_epochs"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"{p}.{name} must be >= 1, got {getattr(self, name)}")
+        if self.entropy_coef < 0 or self.entropy_decay_iterations < 0:
+            raise ConfigError(
+                f"{p}.entropy_coef and {p}.entropy_decay_iterations must be >= 0, got {self.entropy_coef}, "
+                f"{self.entropy_decay_iterations}"
+            )
+        if self.estimate_rollout_every < 0 or self.estimate_rollout_start < 0:
+            raise ConfigError(
+                f"{p}.estimate_rollout_every and {p}.estimate_rollout_start must be >= 0, got "
+                f"{self.estimate_rollout_every}, {self.estimate_rollout_start}"
+            )
+        self.symmetry_cfg.validate(f"{p}.symmetry_cfg")
+        if self.precision not in PRECISIONS:
+            raise ConfigError(
+                f"{p}.precision must be one of {' | '.join(PRECISIONS)}, got {self.precision!r}"
+            )
+
 
 @dataclass
 class RunnerCfg:
@@ -138,6 +186,17 @@ class RunnerCfg:
     logger: str = "tensorboard"
     wandb_project: str = "lasmp"  # the W&B project (the entity: $WANDB_USERNAME, else your default)
     neptune_project: str = "lasmp"  # the Neptune project, under the workspace $NEPTUNE_USERNAME
+
+    def validate(self, p: str = "runner") -> None:
+        if self.num_steps_per_env < 1 or self.max_iterations < 0 or self.save_interval < 1:
+            raise ConfigError(
+                f"{p}.num_steps_per_env and {p}.save_interval must be >= 1, max_iterations >= 0"
+            )
+        if type(self.keep_full) is not int or self.keep_full < 1:
+            raise ConfigError(f"{p}.keep_full must be an integer >= 1, got {self.keep_full!r}")
+        if not 0 <= self.max_fault_fraction <= 1:
+            raise ConfigError(f"{p}.max_fault_fraction must be in [0, 1], got {self.max_fault_fraction}")
+        validate_logger(self)
 
 
 @dataclass
@@ -180,53 +239,12 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
             f"its env (task=rough_static selects env=rough_static); drop the env=<option> override"
         )
     cfg.env.validate("env")
-    p, a, r = cfg.policy, cfg.algo, cfg.runner
-    if p.explicit not in ("all", "no_platform", "none"):
-        raise ConfigError(f"policy.explicit must be all | no_platform | none, got {p.explicit!r}")
-    if p.use_alignment and p.explicit != "all":
-        raise ConfigError(
-            "policy.use_alignment needs policy.explicit=all (the command is built from platform estimates)"
-        )
-    if p.latent_dim < 1 or p.init_noise_std <= 0:
-        raise ConfigError("policy.latent_dim must be >= 1 and policy.init_noise_std > 0")
-    for name in ("learning_rate", "clip_param", "estimator_learning_rate", "max_grad_norm"):
-        if getattr(a, name) <= 0:
-            raise ConfigError(f"algo.{name} must be > 0, got {getattr(a, name)}")
-    if not 0 < a.gamma <= 1 or not 0 <= a.lam <= 1:
-        raise ConfigError(f"algo.gamma must be in (0, 1] and algo.lam in [0, 1], got {a.gamma}, {a.lam}")
-    if a.roa_lambda < 0:
-        raise ConfigError(f"algo.roa_lambda must be >= 0, got {a.roa_lambda}")
-    for name in ("num_learning_epochs", "num_mini_batches", "estimator_epochs"):
-        if getattr(a, name) < 1:
-            raise ConfigError(f"algo.{name} must be >= 1, got {getattr(a, name)}")
-    if a.entropy_coef < 0 or a.entropy_decay_iterations < 0:
-        raise ConfigError(
-            f"algo.entropy_coef and algo.entropy_decay_iterations must be >= 0, got {a.entropy_coef}, "
-            f"{a.entropy_decay_iterations}"
-        )
-    if a.estimate_rollout_every < 0 or a.estimate_rollout_start < 0:
-        raise ConfigError(
-            f"algo.estimate_rollout_every and algo.estimate_rollout_start must be >= 0, got "
-            f"{a.estimate_rollout_every}, {a.estimate_rollout_start}"
-        )
-    sym = a.symmetry_cfg
-    if sym.mirror_loss_coeff < 0 or (sym.use_mirror_loss and sym.mirror_loss_coeff == 0):
-        raise ConfigError(
-            f"algo.symmetry_cfg.mirror_loss_coeff must be >= 0, and > 0 with use_mirror_loss; got {sym.mirror_loss_coeff}"
-        )
-    if sym.enabled and not supports_mirror(registry.env_class(cfg.task)):
+    cfg.policy.validate()
+    cfg.algo.validate()
+    cfg.runner.validate()
+    a, r = cfg.algo, cfg.runner
+    if a.symmetry_cfg.enabled and not supports_mirror(registry.env_class(cfg.task)):
         raise ConfigError(f"algo.symmetry_cfg: task={cfg.task} has no mirror maps (moving_platform has)")
-    if a.precision not in PRECISIONS:
-        raise ConfigError(f"algo.precision must be one of {' | '.join(PRECISIONS)}, got {a.precision!r}")
-    if r.num_steps_per_env < 1 or r.max_iterations < 0 or r.save_interval < 1:
-        raise ConfigError(
-            "runner.num_steps_per_env and runner.save_interval must be >= 1, max_iterations >= 0"
-        )
-    if type(r.keep_full) is not int or r.keep_full < 1:
-        raise ConfigError(f"runner.keep_full must be an integer >= 1, got {r.keep_full!r}")
-    if not 0 <= r.max_fault_fraction <= 1:
-        raise ConfigError(f"runner.max_fault_fraction must be in [0, 1], got {r.max_fault_fraction}")
-    validate_logger(r)
     if cfg.env.num_envs * r.num_steps_per_env < a.num_mini_batches:
         raise ConfigError(
             f"env.num_envs * runner.num_steps_per_env ({cfg.env.num_envs * r.num_steps_per_env}) must be at least "

@@ -20,7 +20,7 @@ from omegaconf.errors import ConfigKeyError
 
 from lasmp.config import ConfigError
 from lasmp.train import make_runner, to_plain
-from lasmp.train_cfg import TASKS, register_configs, to_train_cfg
+from lasmp.train_cfg import TASKS, AlgoCfg, PolicyCfg, RunnerCfg, SymmetryCfg, register_configs, to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
@@ -173,6 +173,21 @@ def test_the_paper_preset_validates_and_only_the_runner_needs_a_gpu():
 def test_the_env_option_must_be_the_tasks():
     with pytest.raises(ConfigError, match="task=moving_platform needs a MovingPlatformCfg"):
         to_train_cfg(compose_cfg(["env=rough_static"]))
+
+
+@pytest.mark.parametrize(
+    "part, pattern",
+    [
+        (PolicyCfg(explicit="none"), "policy.use_alignment needs policy.explicit=all"),
+        (AlgoCfg(roa_lambda=-1.0), "algo.roa_lambda must be >= 0"),
+        (AlgoCfg(symmetry_cfg=SymmetryCfg(use_mirror_loss=True)), "algo.symmetry_cfg.mirror_loss_coeff"),
+        (RunnerCfg(keep_full=0), "runner.keep_full"),
+    ],
+)
+def test_each_part_of_the_training_config_validates_itself_naming_the_key(part, pattern):
+    """As the env's parts do: the one place each setting is checked (validate_train_cfg calls them)."""
+    with pytest.raises(ConfigError, match=re.escape(pattern)):
+        part.validate()
 
 
 @pytest.mark.parametrize("task", TASKS)

@@ -87,19 +87,7 @@ class PPOROA(PPO):
         self._learner_started, self._compiled = False, False
         if compile_mlps:  # forced: compiled now, as the switch always did
             self._compile_networks()
-        if roa_lambda < 0:
-            raise ValueError(f"algorithm.roa_lambda must be >= 0, got {roa_lambda}")
-        if estimator_epochs < 1:
-            raise ValueError(f"algorithm.estimator_epochs must be >= 1, got {estimator_epochs}")
-        if estimate_rollout_every < 0 or estimate_rollout_start < 0:
-            raise ValueError(
-                "algorithm.estimate_rollout_every and estimate_rollout_start must be >= 0, got "
-                f"{estimate_rollout_every}, {estimate_rollout_start}"
-            )
-        if entropy_decay_iterations < 0:
-            raise ValueError(
-                f"algorithm.entropy_decay_iterations must be >= 0, got {entropy_decay_iterations}"
-            )
+        # the settings' ranges are checked once, by the training config (AlgoCfg.validate)
         self.roa_lambda = roa_lambda
         self.estimator_epochs = estimator_epochs
         self.estimate_rollout_every = estimate_rollout_every

@@ -168,10 +168,18 @@ class BaseEnv(VecEnv):
             return True
         return False
 
+    # dataclasses of the running state renamed since checkpoints were written: attribute -> (the class's
+    # former name, its name now)
+    RENAMED_RUN_STATE: dict[str, tuple[str, str]] = {}
+
     def _upgrade_run_state(self, attrs: dict) -> dict:
         """The saved running state (`pack` output by attribute name) as this version of the task holds
-        it: a task whose state changed shape since checkpoints were written converts the older form here
-        (unchanged by default), so that those checkpoints still resume exactly."""
+        it, so that checkpoints written before its classes were renamed (`RENAMED_RUN_STATE`) or its
+        state changed shape (a task extends this) still resume exactly."""
+        for name, (former, now) in self.RENAMED_RUN_STATE.items():
+            saved = attrs.get(name)
+            if isinstance(saved, dict) and saved.get("class") == former:
+                attrs = {**attrs, name: {**saved, "class": now}}
         return attrs
 
     def _task_state(self) -> dict:

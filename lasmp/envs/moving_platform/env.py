@@ -352,14 +352,8 @@ class MovingPlatformEnv(BaseEnv):
         "last_state",
     )
     RUN_STATE_CLASSES = (StepState, SceneReadout)
-
-    def _upgrade_run_state(self, attrs: dict) -> dict:
-        """A checkpoint written before the readout was named for the scene it reads holds it as a
-        `Readout`: the same fields."""
-        readout = attrs.get("readout")
-        if isinstance(readout, dict) and readout.get("class") == "Readout":
-            attrs = {**attrs, "readout": {**readout, "class": "SceneReadout"}}
-        return attrs
+    # the readout was a `Readout` before it was named for the scene it reads
+    RENAMED_RUN_STATE = {"readout": ("Readout", "SceneReadout")}
 
     def _task_state(self) -> dict:
         return {"curriculum": self.curriculum.state_dict() if self.curriculum is not None else None}

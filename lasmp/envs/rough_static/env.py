@@ -238,15 +238,15 @@ class RoughStaticEnv(BaseEnv):
         "last_state",
     )
     RUN_STATE_CLASSES = (StepState, RobotReadout)
+    # the step state was a `RoughStepState` before both tasks named their parts alike
+    RENAMED_RUN_STATE = {"last_state": ("RoughStepState", "StepState")}
 
     def _upgrade_run_state(self, attrs: dict) -> dict:
         """A checkpoint written while the robot layer drew the platform's gain factors holds the
         robots as `Intrinsics`, with those factors, which the R-S baseline never used: they are
-        dropped, and the robots read back as the `RobotIntrinsics` they are. Its step state is
-        named `RoughStepState`, as the class was then."""
-        state, intrinsics = attrs.get("last_state"), attrs.get("intrinsics")
-        if isinstance(state, dict) and state.get("class") == "RoughStepState":
-            attrs = {**attrs, "last_state": {**state, "class": "StepState"}}
+        dropped, and the robots read back as the `RobotIntrinsics` they are."""
+        attrs = super()._upgrade_run_state(attrs)
+        intrinsics = attrs.get("intrinsics")
         if isinstance(intrinsics, dict) and intrinsics.get("class") == "Intrinsics":
             fields = {k: v for k, v in intrinsics["fields"].items() if not k.startswith("platform_")}
             attrs = {**attrs, "intrinsics": {**intrinsics, "class": "RobotIntrinsics", "fields": fields}}

@@ -333,6 +333,10 @@ def rsl_rl_cfg(cfg: TrainCfg) -> dict[str, Any]:
     }
 
 
+def to_plain(cfg: TrainCfg) -> dict:
+    return OmegaConf.to_container(OmegaConf.structured(cfg))
+
+
 def to_train_cfg(cfg) -> TrainCfg:
     """An OmegaConf/Hydra config (or a TrainCfg) as a validated TrainCfg, its env built with the
     task's schema and env.seed = seed."""

@@ -19,8 +19,17 @@ from omegaconf import OmegaConf
 from omegaconf.errors import ConfigKeyError
 
 from lasmp.config import ConfigError
-from lasmp.train import make_runner, to_plain
-from lasmp.train_cfg import TASKS, AlgoCfg, PolicyCfg, RunnerCfg, SymmetryCfg, register_configs, to_train_cfg
+from lasmp.train import make_runner
+from lasmp.train_cfg import (
+    TASKS,
+    AlgoCfg,
+    PolicyCfg,
+    RunnerCfg,
+    SymmetryCfg,
+    register_configs,
+    to_plain,
+    to_train_cfg,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")

@@ -13,6 +13,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lasmp"
 # from another package of its layer (the learner and the envs do not know each other)
 LAYERS = (
     ("lasmp.train", "lasmp.play", "lasmp.hydra_cli"),
+    ("lasmp.resume",),
     ("lasmp.eval", "lasmp.render"),
     ("lasmp.deploy",),
     ("lasmp.checkpoint_cfg",),

@@ -47,11 +47,11 @@ def build_policy(data: dict, cfg: TrainCfg, mixin: type | None = None) -> torch.
     actor_class, actor_cfg = resolve_class(dict(rsl["actor"]))
     if mixin is not None:
         actor_class = type(mixin.__name__ + actor_class.__name__, (mixin, actor_class), {})
-    groups = resolve_obs_groups(obs, dict(rsl["obs_groups"]), ["actor", "critic"])
-    with not_fitting(f"{data['path']} does not fit its own config"):  # a shape mismatch, a missing key
-        with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl's models print themselves
+    with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl prints the observation sets and its models
+        groups = resolve_obs_groups(obs, dict(rsl["obs_groups"]), ["actor", "critic"])
+        with not_fitting(f"{data['path']} does not fit its own config"):  # a shape mismatch, a missing key
             policy = actor_class(obs, groups, "actor", int(data["num_actions"]), **actor_cfg)
-        policy.load_state_dict(data["actor_state_dict"])
+            policy.load_state_dict(data["actor_state_dict"])
     policy.deploy = True
     policy.eval()
     return policy

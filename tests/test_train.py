@@ -603,7 +603,7 @@ def _batch_fields(batch) -> list[torch.Tensor]:
 
 
 def test_rsl_rl_visits_the_same_mini_batches_in_every_epoch(tmp_path):
-    """What `PPOROA._mini_batches_gathered_once` relies on: an rsl_rl that drew a new permutation per
+    """What `RoaRolloutStorage.ppo_pass` relies on: an rsl_rl that drew a new permutation per
     epoch would fail here rather than have its epochs silently collapse into one."""
     runner = make_runner(tiny(tmp_path), None)
     rollout(runner)
@@ -614,14 +614,15 @@ def test_rsl_rl_visits_the_same_mini_batches_in_every_epoch(tmp_path):
     assert not torch.equal(batches[0].actions, batches[1].actions)
 
 
-def test_ppo_mini_batches_gathered_once_equal_rsl_rl_s_and_are_fresh_objects(tmp_path):
+def test_ppo_pass_mini_batches_gathered_once_equal_rsl_rl_s_and_are_fresh_objects(tmp_path):
     runner = make_runner(tiny(tmp_path), None)
-    alg = runner.alg
+    storage = runner.alg.storage
     rollout(runner)
     torch.manual_seed(7)
-    expected = list(alg.storage.mini_batch_generator(2, 3))
+    expected = list(storage.mini_batch_generator(2, 3))
     torch.manual_seed(7)
-    got = list(alg._mini_batches_gathered_once(2, 3))
+    with storage.ppo_pass(storage.observations):
+        got = list(storage.mini_batch_generator(2, 3))
     assert len(got) == len(expected) == 6 and len({id(b) for b in got}) == 6
     for a, b in zip(expected, got, strict=True):
         assert all(torch.equal(x, y) for x, y in zip(_batch_fields(a), _batch_fields(b), strict=True))

@@ -16,19 +16,18 @@ import re
 import statistics
 from collections.abc import Callable, Iterator
 
-from rsl_rl.utils.logger import Logger
+from lasmp.algo.rsl_compat import LoggerCompat
 
 NONE_YET = "\u2013"  # a progress field with no value yet
 
 
-class OneLineLogger(Logger):
+class OneLineLogger(LoggerCompat):
     """TensorBoard scalars as rsl_rl's logger writes them, but one terminal line per iteration."""
 
     step_done = None  # callback() after each env-step of a rollout (the runner's fault check)
     iteration_done = None  # callback(it) after each iteration's log (the runner's interruption check)
-    iteration_faults: int | None = (
-        None  # this iteration's env-steps whose physics faulted (the runner sets it)
-    )
+    # this iteration's env-steps whose physics faulted (the runner sets it)
+    iteration_faults: int | None = None
     _timed_s, _timed = 0.0, 0  # the seconds and the count of this command's iterations after its first
 
     def process_env_step(self, rewards, dones, extras, intrinsic_rewards=None) -> None:
@@ -62,13 +61,13 @@ class OneLineLogger(Logger):
             return
         steps = self.cfg["num_steps_per_env"] * self.num_envs * self.gpu_world_size  # all ranks' env-steps
         extras: dict[str, float] = {}
-        for key in dict.fromkeys(k for ep in self.ep_extras for k in ep):
-            values = [float(ep[key]) for ep in self.ep_extras if key in ep]
+        episodes = self.take_episode_extras()
+        for key in dict.fromkeys(k for ep in episodes for k in ep):
+            values = [float(ep[key]) for ep in episodes if key in ep]
             values = [v for v in values if v == v]  # nan: a rate over an empty window
             if values:
                 extras[key] = statistics.fmean(values)
                 self.writer.add_scalar(key, extras[key], it)
-        self.ep_extras.clear()
         for key, value in loss_dict.items():
             self.writer.add_scalar(key if "/" in key else f"Loss/{key}", value, it)
         self.writer.add_scalar("Loss/learning_rate", learning_rate, it)
@@ -78,11 +77,12 @@ class OneLineLogger(Logger):
         self.writer.add_scalar("Perf/collection_time", collect_time, it)
         self.writer.add_scalar("Perf/learning_time", learn_time, it)
         reward = f"{NONE_YET:>8}"  # until an episode has ended
-        if self.rewbuffer:
-            mean_reward = statistics.fmean(self.rewbuffer)
+        returns, lengths = self.finished_episodes()
+        if returns:
+            mean_reward = statistics.fmean(returns)
             reward = f"{mean_reward:8.2f}"
             self.writer.add_scalar("Train/mean_reward", mean_reward, it)
-            self.writer.add_scalar("Train/mean_episode_length", statistics.fmean(self.lenbuffer), it)
+            self.writer.add_scalar("Train/mean_episode_length", statistics.fmean(lengths), it)
         fields = [f"it {it}/{total_it - 1}", f"{fps:,.0f} steps/s", f"reward {reward}"]
         for key, label, fmt in (
             ("Episode/success_rate", "success", ".2f"),
@@ -99,8 +99,8 @@ class OneLineLogger(Logger):
 
     def _eta(self, it: int, start_it: int, total_it: int, seconds: float) -> str:
         """The time left, from the mean time of this command's iterations after its first: the first
-        compiles the networks and warms up, and can take many times as long as the rest (an ETA of
-        16 minutes for a run of 2). NONE_YET until such an iteration is done."""
+        compiles the networks and warms up, and can take many times as long as the rest. NONE_YET
+        until such an iteration is done."""
         if it == start_it:
             self._timed_s, self._timed = 0.0, 0
             return NONE_YET

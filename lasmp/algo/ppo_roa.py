@@ -1,4 +1,5 @@
-"""PPO with Regularized Online Adaptation (SPEC §9), an extension of rsl_rl's `PPO`.
+"""PPO with Regularized Online Adaptation, an extension of rsl_rl's `PPO`
+(docs/method.md#learning-ppo-with-regularized-online-adaptation-lasmpalgo).
 
 `update()` first runs rsl_rl's PPO update unchanged (actor backbone, implicit encoder, action
 std and critic; the estimators get no PPO gradient). It then makes one pass over the same
@@ -8,10 +9,10 @@ with the adaptation losses of `LasmpActor.roa_losses`:
     L_exp = ||x_exp_hat - x_exp||^2
     L_imp = ||l_imp_hat - sg[l_imp]||^2  +  lambda * ||sg[l_imp_hat] - l_imp||^2,  lambda = 0.2
 
-Our choices (SPEC leaves them open): the estimators have their own Adam optimizer
-(`estimator_learning_rate`); the encoder's regularization term (the second of L_imp) steps the
-encoder through PPO's optimizer, in a step of its own in which no other parameter has a
-gradient; lambda is constant (no ramp).
+Our choices where the paper leaves them open (docs/method.md#our-readings-and-departures-in-one-table):
+the estimators have their own Adam optimizer (`estimator_learning_rate`); the encoder's
+regularization term (the second of L_imp) steps the encoder through PPO's optimizer, in a step of
+its own in which no other parameter has a gradient; lambda is constant (no ramp).
 
 The learner counts its iterations (`iteration`: the one whose rollout and update come next; an
 update completes it, `load` of a checkpoint continues after the checkpoint's). Rollouts act with
@@ -32,19 +33,70 @@ Divergence guard: a non-finite loss, parameter or optimizer state after an updat
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
+from collections.abc import Iterator
 from itertools import chain
 
 import torch
 import torch.nn as nn
 from rsl_rl.algorithms import PPO
-from rsl_rl.utils.utils import reduce_gradients_in_buckets
+from rsl_rl.storage import RolloutStorage
+from rsl_rl.utils import reduce_gradients_in_buckets
+from tensordict import TensorDict
 
 from lasmp.algo.checkpoint import check_finite
 from lasmp.algo.precision import resolve_precision
 from lasmp.algo.symmetry import mirror_augment, supports_mirror
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
+
+
+class RoaRolloutStorage(RolloutStorage):
+    """rsl_rl's rollout storage with a PPO pass over a view of the rollout (`ppo_pass`): PPOROA's
+    update hands rsl_rl's PPO only the observation groups it reads, and on the estimates the very
+    estimates its rollout acted on, without copying the rollout."""
+
+    _ppo_pass = False  # inside `ppo_pass`
+
+    @classmethod
+    def like(cls, storage: RolloutStorage) -> RoaRolloutStorage:
+        """An empty storage of `storage`'s kind and shapes (rsl_rl's `construct_algorithm` builds a
+        plain one and hands it to the learner)."""
+        return cls(
+            storage.training_type,
+            storage.num_envs,
+            storage.num_transitions_per_env,
+            storage.observations[0],
+            storage.actions_shape,
+            storage.device,
+        )
+
+    @contextlib.contextmanager
+    def ppo_pass(self, observations: TensorDict) -> Iterator[None]:
+        """Inside: `observations` stand for the stored ones (rsl_rl's PPO update reads them for its
+        mini-batches and its normalizer update), and `mini_batch_generator` gathers each mini-batch
+        once for all epochs."""
+        stored = self.observations
+        self.observations, self._ppo_pass = observations, True
+        try:
+            yield
+        finally:
+            self.observations, self._ppo_pass = stored, False
+
+    def mini_batch_generator(self, num_mini_batches: int, num_epochs: int = 8):
+        """rsl_rl's mini-batches; in a PPO pass each gathered from the rollout once. rsl_rl's
+        generator draws one permutation for all epochs, so every epoch visits the same mini-batches
+        in the same order (`tests/test_train.py` checks that of the installed rsl_rl): the same
+        values, gathered once. A fresh `Batch` per epoch, since PPO may reassign a batch's fields
+        (per-mini-batch advantage normalization)."""
+        if not self._ppo_pass:
+            yield from super().mini_batch_generator(num_mini_batches, num_epochs)
+            return
+        gathered = list(super().mini_batch_generator(num_mini_batches, 1))
+        for _ in range(num_epochs):
+            for batch in gathered:
+                yield copy.copy(batch)
 
 
 class PPOROA(PPO):
@@ -73,7 +125,7 @@ class PPOROA(PPO):
         super().__init__(
             actor,
             critic,
-            storage,
+            RoaRolloutStorage.like(storage),
             use_mixed_precision=plan.bf16_autocast,
             symmetry_cfg=symmetry_cfg,
             **kwargs,
@@ -125,7 +177,7 @@ class PPOROA(PPO):
             obs = obs.exclude(GROUP_DETACHED_ESTIMATES)
         obs, actions = mirror_augment(env, obs, actions)
         if estimates is not None:
-            mirrored = self._raw_actor.detached_estimates(obs[len(estimates) :])
+            mirrored = self.get_policy().detached_estimates(obs[len(estimates) :])
             obs[GROUP_DETACHED_ESTIMATES] = torch.cat([estimates, mirrored.to(estimates.dtype)])
         return obs, actions
 
@@ -152,7 +204,7 @@ class PPOROA(PPO):
     def iteration(self, iteration: int) -> None:
         """Go on at iteration `iteration`: its rollout and update act as the schedule says."""
         self._iteration = int(iteration)
-        self._raw_actor.act_on_estimates = self.acts_on_estimates(self._iteration)
+        self.get_policy().act_on_estimates = self.acts_on_estimates(self._iteration)
         self.entropy_coef = self.entropy_coef_at(self._iteration)
 
     def start_learner(self) -> None:
@@ -194,16 +246,12 @@ class PPOROA(PPO):
         on_estimates = self.actor.act_on_estimates
         stored = self.storage.observations
         # PPO's mini-batches gather only what the actor and critic read (a view: nothing is copied)
-        self.storage.observations = stored.exclude(*self._unread_by_ppo(on_estimates))
+        read = stored.exclude(*self._unread_by_ppo(on_estimates))
         if on_estimates:  # the rollout's own estimates, not new ones per mini-batch and epoch
-            self.storage.observations[GROUP_DETACHED_ESTIMATES] = self._estimates_of_rollout(stored)
+            read[GROUP_DETACHED_ESTIMATES] = self._estimates_of_rollout(stored)
         self._estimate_steps = 0
-        self.storage.mini_batch_generator = self._mini_batches_gathered_once  # for this update only
-        try:
+        with self.storage.ppo_pass(read):
             loss_dict = super().update()
-        finally:
-            self.storage.observations = stored
-            del self.storage.mini_batch_generator  # the storage's own again
         loss_dict.update(self.update_roa())
         loss_dict["Policy/acts_on_estimates"] = float(on_estimates)
         loss_dict["Policy/entropy_coef"] = self.entropy_coef
@@ -221,17 +269,6 @@ class PPOROA(PPO):
                 "is intact (none is written from a diverged state)."
             )
         check_finite(self.save(), "parameters after the update (training diverged)")
-
-    def _mini_batches_gathered_once(self, num_mini_batches: int, num_epochs: int):
-        """rsl_rl's mini-batches for PPO's epochs, each gathered from the rollout once: its generator
-        draws one permutation for all epochs, so every epoch visits the same mini-batches in the same
-        order (`tests/test_train.py` checks that of the installed rsl_rl). The same values as rsl_rl's
-        generator; a fresh `Batch` per epoch, since PPO may reassign a batch's fields (per-mini-batch
-        advantage normalization)."""
-        gathered = list(type(self.storage).mini_batch_generator(self.storage, num_mini_batches, 1))
-        for _ in range(num_epochs):
-            for batch in gathered:
-                yield copy.copy(batch)
 
     def _estimates_of_rollout(self, stored) -> torch.Tensor:
         """(T, N, k) estimates for the stored rollout: those its steps acted on, when every step kept
@@ -273,17 +310,15 @@ class PPOROA(PPO):
             self.optimizer.zero_grad()
             self.estimator_optimizer.zero_grad()
             total.backward()
-            if (
-                self.is_multi_gpu
-            ):  # data-parallel: every rank steps the same, averaged gradients (as PPO's pass)
+            # data-parallel: every rank steps the same, averaged gradients (as PPO's pass)
+            if self.is_multi_gpu:
                 reduce_gradients_in_buckets(
                     self.actor.parameters(), self.gpu_world_size, self.grad_reduce_bucket_mb
                 )
             nn.utils.clip_grad_norm_(self._estimator_params, self.max_grad_norm)
             self.estimator_optimizer.step()
-            for (
-                p
-            ) in self._estimator_params:  # PPO's optimizer steps only what the λ term reaches: the encoder
+            # PPO's optimizer steps only what the λ term reaches: the encoder
+            for p in self._estimator_params:
                 p.grad = None
             self.optimizer.step()
             logged = {f"roa_{k}": v.detach() for k, v in losses.items()}

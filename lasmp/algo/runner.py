@@ -9,6 +9,13 @@
 - Interruption: SIGINT (Ctrl-C) or SIGTERM during `learn` lets the current iteration finish, writes
   `model_<it>.pt` and raises `TrainingInterrupted` (the caller prints the resume command). A second
   signal exits at once (`SystemExit`, code 128 + signal: 130 / 143), without a checkpoint.
+- Where the fault guard and the interruption fire: inside rsl_rl's `OnPolicyRunner.learn`, from
+  its logger (`OneLineLogger`).
+  The loop calls `logger.process_env_step` after every env-step of a rollout (then `_check_faults`)
+  and `logger.log` after every update (then `_after_iteration`, which saves and raises on a signal,
+  before rsl_rl's own save of that iteration). These are the loop's only calls, per step and per
+  iteration, into an object the runner chooses; rsl_rl offers no hook, and overriding `learn`
+  would copy its loop.
 - Disk: after each save into the run directory the newest `keep_full` full checkpoints stay, older
   ones become policy checkpoints (`keep_newest_full`), and a line names them.
 - Console (`lasmp.algo.console`): one line per network instead of rsl_rl's printout of every layer,
@@ -22,8 +29,6 @@ import sys
 import threading
 import time
 from pathlib import Path
-
-from rsl_rl.runners import OnPolicyRunner
 
 from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import (
@@ -41,6 +46,7 @@ from lasmp.algo.checkpoint import (
     set_rng_state,
 )
 from lasmp.algo.console import OneLineLogger, network_line, without_network_printout
+from lasmp.algo.rsl_compat import OnPolicyRunnerCompat
 
 INTERRUPT_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -61,7 +67,7 @@ class TrainingFaulted(RuntimeError):
     """Too many of an iteration's env-steps faulted (the physics diverged); the message says how many."""
 
 
-class LasmpRunner(OnPolicyRunner):
+class LasmpRunner(OnPolicyRunnerCompat):
     """`OnPolicyRunner` + checkpoints with config, layout, env and random state; fault guard;
     checkpoint on SIGINT / SIGTERM."""
 
@@ -102,7 +108,7 @@ class LasmpRunner(OnPolicyRunner):
         self._signal: int | None = None
 
     # -- data-parallel training (lasmp.algo.distributed) -------------------------------------------
-    def _configure_multi_gpu(self) -> None:
+    def configure_ranks(self) -> None:
         """rsl_rl's multi-GPU setup without its NCCL-and-CUDA assumption: gloo on a CPU, NCCL on CUDA."""
         ranks = dp.ranks_from_env()
         self.gpu_world_size, self.gpu_global_rank, self.gpu_local_rank = (
@@ -243,7 +249,7 @@ class LasmpRunner(OnPolicyRunner):
             num_actions=self.env.num_actions,
             env_state=self.env.state_dict(),
             rng_state=rng_state(self.env.rng),
-            episode_log_state=self._episode_log_state(),
+            episode_log_state=self.logger.episode_log_state(),
         )
         if self.is_distributed:  # every rank's envs, so that a resume of the job continues each of them
             data["other_ranks"] = self._other_ranks
@@ -261,24 +267,6 @@ class LasmpRunner(OnPolicyRunner):
             said = [f"kept as policy checkpoints: {', '.join(converted)}"] if converted else []
             said += [f"left as they were: {'; '.join(left)}"] if left else []
             print(f"checkpoints (runner.keep_full={self.keep_full}): {'; '.join(said)}", flush=True)
-
-    def _episode_log_state(self) -> dict:
-        """The logger's running episode sums and its windows of finished episodes: without them the
-        first rewards logged after a resume would count only the steps since the resume."""
-        log = self.logger
-        return {
-            "reward_sum": log.cur_reward_sum.cpu(),
-            "length": log.cur_episode_length.cpu(),
-            "rewards": list(log.rewbuffer),
-            "lengths": list(log.lenbuffer),
-        }
-
-    def _load_episode_log_state(self, saved: dict) -> None:
-        log = self.logger
-        log.cur_reward_sum.copy_(saved["reward_sum"])
-        log.cur_episode_length.copy_(saved["length"])
-        log.rewbuffer.extend(saved["rewards"])
-        log.lenbuffer.extend(saved["lengths"])
 
     def load(
         self,
@@ -306,7 +294,7 @@ class LasmpRunner(OnPolicyRunner):
             with not_fitting(f"{where}: the envs' running state does not fit this env"):
                 restored = self.env.load_state_dict(data["env_state"], run=run)
                 if restored and data.get("episode_log_state"):
-                    self._load_episode_log_state(data["episode_log_state"])
+                    self.logger.load_episode_log_state(data["episode_log_state"])
         if data.get("rng_state"):  # older checkpoints lack it: the streams then restart from the seed
             with not_fitting(f"{where}: its random state cannot be restored"):
                 set_rng_state(data["rng_state"], self.env.rng)

@@ -1,6 +1,7 @@
 """What train.py prints, on the real CLI at a tiny size: a line per network, progress lines numbered
 as the checkpoint files are, no `nan` reward, no ETA before an iteration after the first is timed,
-the checkpoints kept and converted, and a resume that says how many iterations it adds."""
+the checkpoints kept and converted, and a resume that says how many iterations it adds; and that
+loading its policy to play or evaluate prints none of rsl_rl's build output."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from lasmp.algo.console import NONE_YET, OneLineLogger
+from lasmp.deploy import load_policy
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = [
@@ -103,3 +105,10 @@ def test_the_eta_leaves_out_the_first_iteration_of_each_command():
     assert logger._eta(11, 10, 20, 2.0) == "0:00:16"  # 8 left at 2 s
     assert logger._eta(12, 10, 20, 4.0) == "0:00:21"  # 7 left at 3 s
     assert logger._eta(0, 0, 5, 50.0) == NONE_YET  # a new command starts over
+
+
+def test_loading_a_run_s_policy_prints_nothing_of_rsl_rl_s(runs, capsys):
+    run, _, _ = runs
+    capsys.readouterr()
+    load_policy(run)
+    assert capsys.readouterr().out == ""  # no "Resolved observation sets", no model printout

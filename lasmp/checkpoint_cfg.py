@@ -1,8 +1,11 @@
 """A checkpoint's training config, rebuilt as today's TrainCfg: what play, evaluation and the
-benchmarks build a policy and an env from. It lives above `lasmp.algo`, which knows checkpoints but
-not the training config."""
+benchmarks build a policy and an env from (`checkpoint_cfg`), and what a resume runs, with the
+command's keys on top (`lasmp.resume`). It lives above `lasmp.algo`, which knows checkpoints but not
+the training config."""
 
 from __future__ import annotations
+
+from contextlib import contextmanager
 
 from omegaconf import OmegaConf
 
@@ -17,7 +20,7 @@ def checkpoint_cfg(
     given nested env overrides) changed; CheckpointError if today's code cannot rebuild it."""
     if not data.get("config"):
         raise CheckpointError(f"checkpoint {data['path']} carries no config to rebuild the policy from")
-    try:
+    with rebuilding(data):
         conf = OmegaConf.create(data["config"])
         conf.env.num_envs = int(num_envs)
         conf.seed = int(seed)
@@ -31,7 +34,15 @@ def checkpoint_cfg(
             conf.env.trajectory.file = str(trajectories)
         conf.env = OmegaConf.merge(conf.env, OmegaConf.create(env_overrides or {}))
         return to_train_cfg(conf)
-    except Exception as err:  # unknown/removed keys, out-of-range values: the code moved on
+
+
+@contextmanager
+def rebuilding(data: dict):
+    """Any failure of rebuilding the config of checkpoint `data` (a key since removed or renamed, a
+    value now out of range: the code moved on) as one CheckpointError naming the checkpoint."""
+    try:
+        yield
+    except Exception as err:
         raise CheckpointError(
             f"checkpoint {data['path']} has a config this code cannot rebuild: {err}"
         ) from err

@@ -12,17 +12,29 @@ or refused where it cannot take effect (`RESUME_FIXED`).
 
 from __future__ import annotations
 
+import contextlib
 import re
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from omegaconf import OmegaConf
 
-from lasmp.algo.checkpoint import CheckpointError, check_finite, refuse_policy_only, run_checkpoints
+from lasmp.algo.checkpoint import (
+    CheckpointError,
+    check_finite,
+    read_checkpoint,
+    refuse_policy_only,
+    run_checkpoints,
+)
+from lasmp.checkpoint_cfg import rebuilding
 from lasmp.rundir import RunDirError, describe, run_files
 from lasmp.train_cfg import TrainCfg, to_plain, to_train_cfg
 
 if TYPE_CHECKING:
+    from hydra.plugins.config_source import ConfigResult
+
     from lasmp.algo.runner import LasmpRunner
 
 CFG_DIR = Path(__file__).resolve().parents[1] / "cfg"
@@ -65,23 +77,47 @@ def _matches(key: str, patterns) -> bool:
     return any(key == p or (p.endswith(".") and key.startswith(p)) for p in patterns)
 
 
-def explicit_keys(cfg, overrides: list[str]) -> set[str]:
-    """The config keys a command line sets: those it names (key=value) and those its group overrides
-    (task=, policy=, preset=) change, found as the keys where `cfg` (composed with `overrides`)
-    differs from the config composed without any."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
+def explicit_keys(overrides: list[str]) -> set[str]:
+    """The config keys a command line sets, read from its overrides as Hydra parsed them: `key=value`
+    (`+key=`, `~key`) names its key; a group option (`task=`, `policy=`, `preset=`, `env=`) stands
+    for the keys its own config sets, under its package (preset=paper: device, env.num_envs and
+    runner.max_iterations; task=rough_static: task). Nothing is composed: each option's config is
+    read alone, from the config sources Hydra composed with."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    keys = {o.key_or_group for o in OverridesParser.create().parse_overrides(overrides)}
-    if GlobalHydra.instance().is_initialized():  # train.py's Hydra app
-        default = compose(config_name="config")
-    else:
-        with initialize_config_dir(config_dir=str(CFG_DIR), version_base="1.3"):
-            default = compose(config_name="config")
-    given = flatten(OmegaConf.to_container(cfg, resolve=True))
-    base = flatten(OmegaConf.to_container(default, resolve=True))
-    return keys | {k for k, v in given.items() if k not in base or base[k] != v}
+    keys: set[str] = set()
+    with _config_sources() as sources:
+        for override in OverridesParser.create().parse_overrides(overrides):
+            name, option = override.key_or_group, override.value()
+            path = f"{name}/{option}"
+            source = next((s for s in sources if isinstance(option, str) and s.is_config(path)), None)
+            keys |= _option_keys(source.load_config(path), name) if source else {name}
+    return keys
+
+
+def _option_keys(option: ConfigResult, group: str) -> set[str]:
+    """The keys a group option's config sets, under its package (Hydra's default: the group's node)."""
+    package = option.header.get("package")
+    if package in (None, "_group_"):
+        package = group.replace("/", ".")
+    package = package.removeprefix("_global_").lstrip(".")
+    content = OmegaConf.to_container(option.config)
+    content.pop("defaults", None)  # the other options it selects, not keys it sets
+    return {f"{package}.{key}" if package else key for key in flatten(content)}
+
+
+@contextlib.contextmanager
+def _config_sources():
+    """Hydra's config sources: those of the app (or the caller's `initialize`) that composed the
+    config, else cfg/'s."""
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    if GlobalHydra.instance().is_initialized():
+        yield GlobalHydra.instance().config_loader().get_sources()
+        return
+    with initialize_config_dir(config_dir=str(CFG_DIR), version_base="1.3"):
+        yield GlobalHydra.instance().config_loader().get_sources()
 
 
 def resumed_cfg(cfg: TrainCfg, data: dict, explicit: set[str] | None) -> TrainCfg:
@@ -96,15 +132,11 @@ def resumed_cfg(cfg: TrainCfg, data: dict, explicit: set[str] | None) -> TrainCf
         if _matches(k, FROM_COMMAND) or k in explicit or any(k.startswith(f"{e}.") for e in explicit)
     }
     _refuse_fixed({k: (saved[k], v) for k, v in taken.items() if k in saved and saved[k] != v})
-    merged = OmegaConf.create(data["config"])
-    for key, value in taken.items():
-        OmegaConf.update(merged, key, value, force_add=True)
-    try:
+    with rebuilding(data):
+        merged = OmegaConf.create(data["config"])
+        for key, value in taken.items():
+            OmegaConf.update(merged, key, value, force_add=True)
         return to_train_cfg(merged)
-    except Exception as err:  # unknown or removed keys, out-of-range values: the code moved on
-        raise CheckpointError(
-            f"checkpoint {data['path']} has a config this code cannot rebuild: {err}"
-        ) from err
 
 
 def check_resume(cfg: TrainCfg, data: dict) -> dict[str, tuple]:
@@ -168,6 +200,50 @@ def apply_learning_rates(runner: LasmpRunner, changed: dict[str, tuple]) -> None
         )
 
 
+@dataclass
+class Resume:
+    """A resume checked whole before anything is built or written: the config it runs, the
+    checkpoint as read (once), and the keys it changes from the run's config, {key: (saved, now)}."""
+
+    cfg: TrainCfg
+    data: dict
+    changed: dict[str, tuple]
+
+    @classmethod
+    def check(cls, cfg: TrainCfg, explicit: set[str] | None) -> Resume:
+        """`cfg.resume` read and checked against `cfg` (`explicit`: as in `resumed_cfg`)."""
+        data = read_checkpoint(cfg.resume, "cpu", full_only=True)
+        cfg = resumed_cfg(cfg, data, explicit)
+        return cls(cfg, data, check_resume(cfg, data))
+
+    def restore(self, runner: LasmpRunner, say: Callable[..., None]) -> None:
+        """Load the checkpoint into the runner built from `cfg`, apply the changed keys, and say
+        what changed and where the run goes on."""
+        keep = {
+            "actor": True,
+            "critic": True,
+            "optimizer": True,
+            "iteration": True,
+            "env_run_state": not self.cfg.resume_drop_env_state,
+        }
+        runner.load(self.data, load_cfg=keep)
+        apply_learning_rates(runner, self.changed)
+        others = {k: v for k, v in self.changed.items() if k not in LEARNING_RATES}
+        if others:
+            say(
+                "resume: in effect from now on, changed from the run's config: "
+                + ", ".join(f"{k} {old} -> {new}" for k, (old, new) in others.items()),
+                flush=True,
+            )
+        first = runner.current_learning_iteration
+        last = first + self.cfg.runner.max_iterations - 1
+        say(
+            f"resumed from {self.data['path']} at iteration {first} (0\u2013{first - 1} done); runner.max_iterations "
+            f"counts the iterations to add: {self.cfg.runner.max_iterations} more, to {last}",
+            flush=True,
+        )
+
+
 def check_run_dir(log_dir: Path, data: dict | None):
     """The check `claim` makes once it holds the directory's lock."""
 
@@ -196,6 +272,7 @@ def check_run_dir(log_dir: Path, data: dict | None):
 
 
 def hydra_overrides() -> list[str] | None:
+    """The overrides Hydra parsed from train.py's command line; None outside its app."""
     from hydra.core.hydra_config import HydraConfig
 
     return list(HydraConfig.get().overrides.task) if HydraConfig.initialized() else None

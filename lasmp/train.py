@@ -17,22 +17,13 @@ import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo import distributed as dp
-from lasmp.algo.checkpoint import CheckpointError, read_checkpoint
+from lasmp.algo.checkpoint import CheckpointError
 from lasmp.algo.runner import LasmpRunner, TrainingFaulted, TrainingInterrupted
 from lasmp.atomic import atomic_open
 from lasmp.config import ConfigError
 from lasmp.envs import registry
 from lasmp.envs.trajectories import TrajectoryFileError
-from lasmp.resume import (
-    LEARNING_RATES,
-    apply_learning_rates,
-    check_resume,
-    check_run_dir,
-    explicit_keys,
-    hydra_overrides,
-    resume_command,
-    resumed_cfg,
-)
+from lasmp.resume import Resume, check_run_dir, explicit_keys, hydra_overrides, resume_command
 from lasmp.rundir import RunDirError, claim
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
 
@@ -78,51 +69,28 @@ def default_log_dir(cfg: TrainCfg) -> str:
 
 
 def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
-    """Train as `cfg` says (see the module docstring); `explicit`: on resume, the keys the command line
-    set (None: every key of `cfg`)."""
+    """Train as `cfg` says: build, resume (`lasmp.resume`), learn. `explicit`: on resume, the keys
+    the command line set (None: every key of `cfg`)."""
     cfg = to_train_cfg(cfg)
-    data, changed = None, {}
-    if cfg.resume:  # fail before building anything if the checkpoint is unusable; read it once
-        data = read_checkpoint(cfg.resume, "cpu", full_only=True)
-        cfg = resumed_cfg(cfg, data, explicit)
-        changed = check_resume(cfg, data)
+    resume = Resume.check(cfg, explicit) if cfg.resume else None  # fails before anything is built
+    cfg = resume.cfg if resume else cfg
     ranks = dp.ranks_from_env()  # torchrun: rank 0 alone holds the run directory, logs and saves
     if ranks.distributed:
         cfg.device = dp.rank_device(cfg.device, ranks)
         dp.setup(ranks, cfg.device)
+    data = resume.data if resume else None
     log_dir = Path(cfg.runner.log_dir or (Path(data["path"]).parent if data else default_log_dir(cfg)))
     owner = claim(log_dir, check_run_dir(log_dir, data)) if ranks.is_main else contextlib.nullcontext()
     say = print if ranks.is_main else (lambda *a, **k: None)
     with owner:
         runner = make_runner(cfg, str(log_dir) if ranks.is_main else None, ranks.rank)
-        if data is not None:
-            keep = {
-                "actor": True,
-                "critic": True,
-                "optimizer": True,
-                "iteration": True,
-                "env_run_state": not cfg.resume_drop_env_state,
-            }
-            runner.load(data, load_cfg=keep)
-            apply_learning_rates(runner, changed)
-            others = {k: v for k, v in changed.items() if k not in LEARNING_RATES}
-            if others:
-                say(
-                    "resume: in effect from now on, changed from the run's config: "
-                    + ", ".join(f"{k} {old} -> {new}" for k, (old, new) in others.items()),
-                    flush=True,
-                )
+        if resume:
+            resume.restore(runner, say)
         first = runner.current_learning_iteration
         last = first + cfg.runner.max_iterations - 1  # the iteration this command ends at
-        if data is not None:
-            say(
-                f"resumed from {data['path']} at iteration {first} (0\u2013{first - 1} done); runner.max_iterations "
-                f"counts the iterations to add: {cfg.runner.max_iterations} more, to {last}",
-                flush=True,
-            )
         if ranks.is_main:  # only now, with everything checked, the run directory's config
             with atomic_open(log_dir / "config.yaml", "w") as f:
-                f.write(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
+                f.write(OmegaConf.to_yaml(to_plain(cfg)))
         processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
         span = f" ({first}\u2013{last})" if cfg.runner.max_iterations else ""
         say(
@@ -156,7 +124,7 @@ def main(cfg, overrides: list[str] | None = None) -> int:
         if overrides is None:
             overrides = hydra_overrides()
         resuming = getattr(cfg, "resume", None) and overrides is not None
-        explicit = explicit_keys(cfg, overrides) if resuming else None
+        explicit = explicit_keys(overrides) if resuming else None
         train(cfg, explicit)
     except TrainingInterrupted as stop:  # checkpoint written and resume command printed
         return 128 + stop.signum

@@ -27,9 +27,8 @@ def checkpoint_cfg(
         conf.device = "cpu"
         conf.resume = None
         conf.runner.log_dir = None
-        conf.runner.logger = (
-            "tensorboard"  # it logs nothing: a W&B or Neptune run plays without their package
-        )
+        # it logs nothing: a W&B or Neptune run plays without their package
+        conf.runner.logger = "tensorboard"
         if trajectories is not None:
             conf.env.trajectory.file = str(trajectories)
         conf.env = OmegaConf.merge(conf.env, OmegaConf.create(env_overrides or {}))

@@ -51,8 +51,8 @@ class PolicyCfg:
     explicit: str = "all"  # explicit estimator outputs: all | no_platform | none
     history_input: bool = False  # the raw observation history is an actor input
     command_input: bool = False  # a velocity command (group `command`) is an actor input (R-S baseline)
-    # (ours) the policy's initial action std, 0.5 (rsl_rl's default is 1.0): the curriculum judges the
-    # sampled rollouts, and at 1.0 the noise kept it at level 5 (docs/method.md, curriculum)
+    # (ours) rsl_rl's is 1.0: the curriculum judges the sampled rollouts, so the noise counts against
+    # the level (docs/method.md#curriculum-randomization-episodes)
     init_noise_std: float = 0.5
 
     def validate(self, p: str = "policy") -> None:
@@ -97,34 +97,29 @@ class AlgoCfg:
     gamma: float = 0.99
     lam: float = 0.95
     value_loss_coef: float = 1.0
-    # (ours) a small entropy bonus, 0.003 (rsl_rl's default is 0.01; SPEC §9 gives none). At 0.01, from
-    # curriculum level 10 on its pull on the action std outweighed the task's and the policy got worse
-    # with training; at 0 the std collapsed before the policy found the height h_des asks for, and it
-    # crouched. 0.003 learns part of the height and did not decline from 450 to 1,000 iterations (seed 0;
-    # chosen by a rule fixed before its deciding evaluations: docs/results.md, "The entropy bonus")
+    # (ours) a small bonus (rsl_rl's is 0.01, the paper names none): enough to keep the action std from
+    # collapsing, too little to pull it up (docs/results.md#the-entropy-bonus)
     entropy_coef: float = 0.003
-    # (ours) iterations over which the entropy bonus falls linearly from entropy_coef to 0, after which
-    # it stays 0; 0 = constant (rsl_rl's). Why a schedule is offered: docs/results.md, "The entropy bonus"
+    # (ours) the bonus falls linearly from entropy_coef to 0 over this many iterations, then stays 0;
+    # 0: constant, as rsl_rl's (docs/results.md#the-entropy-bonus)
     entropy_decay_iterations: int = 0
     max_grad_norm: float = 1.0
     desired_kl: float = 0.01
     schedule: str = "adaptive"
-    roa_lambda: float = 0.2  # λ of L_imp, docs/method.md, Learning
+    # λ of L_imp (docs/method.md#learning-ppo-with-regularized-online-adaptation-lasmpalgo)
+    roa_lambda: float = 0.2
     estimator_learning_rate: float = 1e-3  # (ours) the estimators' own Adam
     estimator_epochs: int = 1  # (ours) ROA passes over each rollout
-    # (ours: the paper leaves it open) close the train/deploy gap: from iteration estimate_rollout_start
-    # on, every estimate_rollout_every-th iteration's rollout *and* PPO update act on the estimators'
-    # outputs (detached) instead of the privileged inputs; 0 = never (the paper's literal reading).
-    # Why, and what every iteration rather than every 2nd gained: docs/method.md, "Training on the
-    # estimates", and docs/results.md, "The earlier schedule".
+    # (ours) from iteration estimate_rollout_start on, every estimate_rollout_every-th iteration's
+    # rollout and PPO update act on the estimators' detached outputs, as at deployment, to close the
+    # train/deploy gap; 0: never, the paper's literal reading
+    # (docs/method.md#training-on-the-estimates-ours-a-departure-from-the-papers-literal-reading)
     estimate_rollout_every: int = 1
     estimate_rollout_start: int = 100
-    # (ours) how the learner computes (lasmp/algo/precision.py): auto = bfloat16 autocast where the
-    # hardware multiplies bfloat16 natively and faster (a CPU with AVX-512 BF16 / AMX whose bfloat16
-    # matrix product measures >= 1.25x float32's at start-up, a GPU with bfloat16), the
-    # fused Adam and compiled MLPs where they work, each falling back with a line at start-up saying
-    # why; float32 = none of them (the learner of the runs trained before auto: a seeded run repeats
-    # their curve); bfloat16 = the autocast forced
+    # (ours) how the learner computes (lasmp/algo/precision.py): auto = bfloat16 autocast, the fused
+    # Adam and compiled MLPs, each where it works and pays here, the start-up line saying why not;
+    # float32 = none of them (the learner before auto: a seeded run repeats its curve); bfloat16 = the
+    # autocast forced (docs/performance.md#the-learners-precision-algoprecision)
     precision: str = "auto"
     # per-part overrides of precision (null: as precision decides). fused_adam: both Adams as one
     # fused kernel; use_mixed_precision: rsl_rl's bfloat16 autocast of the PPO update's forward pass,
@@ -173,9 +168,9 @@ class RunnerCfg:
     # max_iterations=35 runs iterations 35-69
     max_iterations: int = 1500
     save_interval: int = 100
-    # (ours) the full checkpoints model_<N>.pt kept in the run directory, the newest (~24 MB each at 1,024
-    # envs, 20 MB of it the envs' running state): each older save becomes its policy checkpoint
-    # policy_<N>.pt (~2 MB), which plays and evaluates but cannot resume, so a laptop keeps a long run
+    # (ours) the newest full checkpoints model_<N>.pt kept in the run directory; each older save becomes
+    # its policy checkpoint policy_<N>.pt, which plays and evaluates but cannot resume: a laptop keeps
+    # a long run (docs/usage.md#checkpoints-lasmpalgocheckpointpy)
     keep_full: int = 2
     log_dir: str | None = None  # default: logs/<task>/<policy>/<date_time>
     check_for_nan: bool = True
@@ -203,9 +198,8 @@ class RunnerCfg:
 class TrainCfg:
     task: str = "moving_platform"
     seed: int = 0
-    device: str = (
-        "cpu"  # where the learner runs, and the physics with env.backend=warp (cpu backend: the CPU)
-    )
+    # where the learner runs, and the physics with env.backend=warp (cpu backend: the CPU)
+    device: str = "cpu"
     torch_threads: int = 0  # CPU threads of torch for the learner; 0 = torch's default (all cores)
     resume: str | None = None  # a full checkpoint file or a run directory (its latest model_<N>.pt)
     # on resume, start every env's episode anew instead of restoring the envs' running state: needed
@@ -213,7 +207,7 @@ class TrainCfg:
     resume_drop_env_state: bool = False
     # the task's env config, env_schema(task). Hydra composes it from the `env` group (typed: unknown keys
     # fail naming them); a plain dict (a checkpoint's saved config) is built with the task's schema by
-    # lasmp.train.to_train_cfg. Any, not BaseEnvCfg: a task's keys must merge into it before its type is known
+    # to_train_cfg. Any, not BaseEnvCfg: a task's keys must merge into it before its type is known
     env: Any = field(default_factory=dict)
     policy: PolicyCfg = field(default_factory=PolicyCfg)
     algo: AlgoCfg = field(default_factory=AlgoCfg)
@@ -230,7 +224,7 @@ def register_configs() -> None:
 
 def validate_train_cfg(cfg: TrainCfg) -> None:
     if not is_dataclass(cfg.env):
-        raise ConfigError("env must be built with its task's schema (lasmp.train.to_train_cfg does it)")
+        raise ConfigError("env must be built with its task's schema (lasmp.train_cfg.to_train_cfg does it)")
     check_known_keys(cfg)  # a `+key=value` typo (Hydra appends it) or a misspelt attribute set in code
     schema = env_schema(cfg.task)
     if type(cfg.env) is not schema:

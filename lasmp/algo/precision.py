@@ -4,8 +4,7 @@ each where the hardware and the installation have it, and one line that says wha
 `auto` takes each part that pays here: bfloat16 autocast only on a CPU with AVX-512 BF16 or AMX (on
 others oneDNN emulates bfloat16 and the matrix products run several times slower) where a matrix
 product of the learner's size also measures faster in bfloat16 than in float32 (the flag alone
-cannot tell: an AMD EPYC with AVX-512 BF16 multiplies bfloat16 2.4 times as fast as float32, an
-Intel Xeon with AVX-512 BF16 and no AMX at 0.5-0.6 times the speed), or on a GPU with native
+cannot tell: docs/performance.md#the-learners-precision-algoprecision), or on a GPU with native
 bfloat16; the fused Adam where torch has it for the device; compiled MLPs where a tiny
 `torch.compile` succeeds (on a CPU it needs a C++ compiler). `float32` is the learner as it was
 before `auto`: no autocast, rsl_rl's Adam, eager networks, so a seeded run repeats its old curve.
@@ -27,7 +26,8 @@ import torch
 PRECISIONS = ("auto", "float32", "bfloat16")  # the values of algo.precision
 BF16_CPU_FLAGS = ("avx512_bf16", "amx_bf16")  # x86 /proc/cpuinfo flags of native bfloat16 matrix products
 # (ours) bfloat16 autocast pays on a CPU only where its matrix products measure at least this much
-# faster than float32's: the update also pays for the casts (docs/performance.md, "A third CPU")
+# faster than float32's: the update also pays for the casts
+# (docs/performance.md#the-learners-precision-algoprecision)
 BF16_MIN_SPEEDUP = 1.25
 # the probe's product: a minibatch of the default config (1,024 envs x 12 steps / 4) through a hidden layer
 PROBE_SHAPE = (3072, 512, 256)
@@ -56,8 +56,8 @@ def cpu_has_fast_bf16(cpuinfo: str | None = None) -> bool:
 def bf16_matmul_speedup(rounds: int = 3, reps: int = 4) -> float:
     """How many times faster this CPU multiplies a learner-sized matrix product (`PROBE_SHAPE`) in
     bfloat16 than in float32, on torch's threads: the best of `rounds` interleaved timings of `reps`
-    products each, so that a load on the machine slows both sides alike. About 0.2 s; once per
-    process. Run only where the flags promise native bfloat16 (where it is emulated it is slow)."""
+    products each, so that a load on the machine slows both sides alike; once per process. Run
+    only where the flags promise native bfloat16 (where it is emulated it is slow)."""
     rows, inner, cols = PROBE_SHAPE
     gen = torch.Generator().manual_seed(0)
     a, b = torch.randn(rows, inner, generator=gen), torch.randn(inner, cols, generator=gen)
@@ -106,8 +106,8 @@ def fused_adam_works(device: str) -> tuple[bool, str]:
 
 @functools.cache
 def compile_works(device: str) -> tuple[bool, str]:
-    """(torch.compile builds and runs a tiny kernel on this device, why not). A few seconds: it
-    imports the compiler stack, which the real compilation needs anyway."""
+    """(torch.compile builds and runs a tiny kernel on this device, why not). It imports the compiler
+    stack, which the real compilation needs anyway."""
     try:
         with torch.inference_mode(False), torch.no_grad():
             x = torch.linspace(-2.0, 2.0, 16, device=device)

@@ -1,5 +1,6 @@
-"""The composed LAS-MP policy: backbone + implicit encoder + history estimators (SPEC §7-9), and
-its deployable form (`LasmpDeployPolicy`: the proprioceptive window in, the mean action out).
+"""The composed LAS-MP policy: backbone + implicit encoder + history estimators
+(docs/method.md#networks-lasmpmodules), and its deployable form (`LasmpDeployPolicy`: the
+proprioceptive window in, the mean action out).
 
 Usable as rsl_rl's actor: ``{"class_name": "lasmp.modules.policy:LasmpActor", ...}``.
 """
@@ -257,7 +258,8 @@ class LasmpActor(MLPModel):
     def roa_losses(
         self, obs: TensorDict, lam: float
     ) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
-        """ROA losses (SPEC §9); each squared error is summed over dims and averaged over the batch.
+        """ROA losses, each squared error summed over dims and averaged over the batch
+        (docs/method.md#learning-ppo-with-regularized-online-adaptation-lasmpalgo).
 
         - `exp`     = ||x_exp_hat - x_exp||^2 (raw units; grads only to the explicit estimator; 0 if none)
         - `imp_est` = ||l_imp_hat - sg[l_imp]||^2 (grads only to the implicit estimator)

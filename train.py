@@ -1,7 +1,7 @@
 """Train a LAS-MP policy: `python train.py task=moving_platform [policy=...] [key=value ...]`.
 
-See cfg/config.yaml for the groups and lasmp/train_cfg.py for every key; lasmp/train.py for run
-directories and resume.
+See cfg/config.yaml for the groups and lasmp/train_cfg.py for every key; lasmp/train.py for the run
+(build, resume, learn) and lasmp/resume.py for what a resume keeps, takes and refuses.
 """
 
 import sys

@@ -20,7 +20,6 @@ needs a display (DISPLAY or WAYLAND_DISPLAY).
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import sys
 from pathlib import Path
@@ -28,11 +27,10 @@ from pathlib import Path
 import torch
 
 from lasmp.algo.checkpoint import CheckpointError
-from lasmp.atomic import atomic_open, atomic_write_with
 from lasmp.config import ConfigError
 from lasmp.deploy import load_deploy_env
 from lasmp.envs.trajectories import TrajectoryFileError
-from lasmp.modules.export import deploy_metadata, metadata_props, write_onnx
+from lasmp.modules.export import deploy_metadata, export_policy
 from lasmp.render.renderer import (
     SNAPSHOT_COUNT,
     EnvRenderer,
@@ -44,37 +42,6 @@ from lasmp.render.renderer import (
     snapshot_steps,
 )
 from lasmp.render.viewer import Viewer, has_display
-
-
-# ---------------------------------------------------------------------------------------------
-# Export
-# ---------------------------------------------------------------------------------------------
-def export_policy(policy, out_dir: str | Path, metadata: dict | None = None) -> Path:
-    """Write the deployable policy (input obs_window (1, H+1, D), output actions) as ONNX.
-
-    With `metadata` (`lasmp.modules.export.deploy_metadata`), the file carries it in its
-    `metadata_props` (each value JSON-encoded) and `policy.json` is written beside it.
-    """
-    out_dir = Path(out_dir)
-    module = policy.as_onnx(False).eval()
-    path = out_dir / "policy.onnx"
-
-    def write(tmp: str) -> None:
-        write_onnx(module, tmp)
-        if metadata is not None:
-            import onnx
-
-            model = onnx.load(tmp)
-            onnx.helper.set_model_props(model, metadata_props(metadata))
-            onnx.save(model, tmp)
-
-    atomic_write_with(path, write)
-    if metadata is not None:
-        # one key a line, each value compact: JSON that reads like the list in docs/deploy.md
-        lines = [f"  {json.dumps(key)}: {json.dumps(value)}" for key, value in metadata.items()]
-        with atomic_open(out_dir / "policy.json", "w") as f:
-            f.write("{\n" + ",\n".join(lines) + "\n}\n")
-    return path
 
 
 # ---------------------------------------------------------------------------------------------

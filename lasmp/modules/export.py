@@ -9,6 +9,7 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lasmp.atomic import atomic_open, atomic_write_with
 from lasmp.robots import a1
 
 if TYPE_CHECKING:
@@ -197,3 +198,31 @@ def write_onnx(module, path: str | Path) -> None:
             )
     finally:
         registry.setLevel(level)
+
+
+def export_policy(policy, out_dir: str | Path, metadata: dict | None = None) -> Path:
+    """Write the deployable policy (input obs_window (1, H+1, D), output actions) as ONNX.
+
+    With `metadata` (`lasmp.modules.export.deploy_metadata`), the file carries it in its
+    `metadata_props` (each value JSON-encoded) and `policy.json` is written beside it.
+    """
+    out_dir = Path(out_dir)
+    module = policy.as_onnx(False).eval()
+    path = out_dir / "policy.onnx"
+
+    def write(tmp: str) -> None:
+        write_onnx(module, tmp)
+        if metadata is not None:
+            import onnx
+
+            model = onnx.load(tmp)
+            onnx.helper.set_model_props(model, metadata_props(metadata))
+            onnx.save(model, tmp)
+
+    atomic_write_with(path, write)
+    if metadata is not None:
+        # one key a line, each value compact: JSON that reads like the list in docs/deploy.md
+        lines = [f"  {json.dumps(key)}: {json.dumps(value)}" for key, value in metadata.items()]
+        with atomic_open(out_dir / "policy.json", "w") as f:
+            f.write("{\n" + ",\n".join(lines) + "\n}\n")
+    return path

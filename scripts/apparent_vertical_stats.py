@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from lasmp.eval import cli
-from lasmp.eval import episodes as ep
+from lasmp.eval import platform_probe as pp
 from lasmp.eval.report import atomic_write_text
 from lasmp.motions import level_push
 from lasmp.motions.motion import derivatives
@@ -63,9 +63,9 @@ def summarize_angles(a: dict[str, np.ndarray], dt: float) -> dict[str, np.ndarra
 
 
 def platform_stats(dt, r_wp, v_plf_w, omega_plf_w, mu, top_m) -> dict[str, np.ndarray]:
-    """`lasmp.eval.episodes.probe_platform`'s stats hook: the angles of each whole platform motion."""
+    """`lasmp.eval.platform_probe.probe_platform`'s stats hook: the angles of each whole platform motion."""
     g_app_w = np.einsum(
-        "...ij,...j->...i", r_wp, ep.apparent_gravity_p(dt, r_wp, v_plf_w, omega_plf_w, top_m)
+        "...ij,...j->...i", r_wp, pp.apparent_gravity_p(dt, r_wp, v_plf_w, omega_plf_w, top_m)
     )
     up_w = -g_app_w / np.linalg.norm(g_app_w, axis=-1, keepdims=True)
     return summarize_angles(angles(up_w, r_wp[..., :, 2]), dt)
@@ -78,7 +78,7 @@ def probe_motion_stats(dt: float) -> dict[str, dict[str, float]]:
     for m in level_push.motions():
         _, a = derivatives(m)
         step = max(1, int(round(dt / float(m.t_s[1] - m.t_s[0]))))
-        up_w = a[::step, :3] - ep.G_W
+        up_w = a[::step, :3] - pp.G_W
         up_w /= np.linalg.norm(up_w, axis=-1, keepdims=True)
         roll, pitch = m.pose[::step, 3], m.pose[::step, 4]
         # the deck's normal for a roll-pitch pose (ZYX, no yaw in these motions): R_y(pitch) R_x(roll) e_z
@@ -131,7 +131,7 @@ def main(argv=None) -> int:
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 
     env_cfg = build_env_cfg(cli.eval_env_overrides(args.batch_envs, 0), schema=MovingPlatformCfg)
-    xi = ep.probe_platform(env_cfg, bench, args.episodes, args.batch_envs, stats=platform_stats)
+    xi = pp.probe_platform(env_cfg, bench, args.episodes, args.batch_envs, stats=platform_stats)
     probe = probe_motion_stats(env_cfg.sim.dt_s * env_cfg.sim.decimation)
     text = table(xi, probe)
     print(text)

@@ -29,21 +29,21 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 import torch
 
-from lasmp.algo.checkpoint import CheckpointError, check_compatible, latest_checkpoint
+from lasmp.algo.checkpoint import CheckpointError, check_compatible
 from lasmp.deploy import load_policy
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
 from lasmp.eval import episodes as ep
+from lasmp.eval import platform_probe as pp
 from lasmp.eval.gait import summarize_gait
 from lasmp.eval.metrics import ALL_METRICS, metric_h_des_p_m, summarize
 from lasmp.eval.mirror import MirroredBenchmark, mirror_report
+from lasmp.eval.outdir import OutDirError, default_out_dir, prepare_out_dir, where_written
 from lasmp.eval.paper import paper_key, paper_row
 from lasmp.eval.report import plot_estimates, write_results
 from lasmp.eval.run import run_benchmark
@@ -272,7 +272,7 @@ def main(argv=None, motions=None) -> int:
         mirror = mirror_report(episodes, mirrored)
     probe = None
     if not args.no_platform_probe:
-        probe = ep.probe_platform(env.cfg, bench, args.num_trajectories, env.num_envs)
+        probe = pp.probe_platform(env.cfg, bench, args.num_trajectories, env.num_envs)
     ep.write_csv(out_dir / ep.EPISODES_FILE, ep.episode_table(bench, episodes, probe))
     result = {
         "method": method,
@@ -283,7 +283,7 @@ def main(argv=None, motions=None) -> int:
         "gait": summarize_gait(episodes),
         "h_des_p_m": metric_h_des_p_m(env.plf_top_m),
         "mean_episode_steps": float(episodes["steps"].mean()),
-        "forced_episodes": None if probe is None else int(ep.count_forced(probe)),
+        "forced_episodes": None if probe is None else int(pp.count_forced(probe)),
         "wall_time_s": run["wall_time_s"],
     }
     if "estimator" in run:
@@ -302,48 +302,6 @@ def main(argv=None, motions=None) -> int:
     print((out_dir / "metrics.md").read_text())
     print(where_written(out_dir, written))
     return 0
-
-
-def where_written(out_dir: Path, names: list[str]) -> str:
-    """The last line evaluate.py prints: where its results are, for a reader who did not pass --out."""
-    return f"results in {out_dir}: {', '.join(names)}"
-
-
-class OutDirError(ValueError):
-    """--out cannot take a result: it already holds one, or it cannot be written."""
-
-
-def default_out_dir(args, root: Path = Path("eval")) -> Path:
-    """eval/stand_still; else eval/<run directory>/<checkpoint stem>[_<controller>], from the checkpoint
-    file (a run directory's latest model_<N>.pt), so `model_449.pt` of two runs land apart."""
-    if args.checkpoint is None:
-        return root / args.controller
-    path = Path(args.checkpoint)
-    if path.is_dir():
-        path = latest_checkpoint(path)
-    path = path.resolve()
-    suffix = f"_{args.controller}" if args.controller else ""
-    return root / path.parent.name / f"{path.stem}{suffix}"
-
-
-def prepare_out_dir(out_dir: Path, force: bool) -> Path:
-    """Create `out_dir` and prove it writable (a temporary file), before any episode is played;
-    refuse one that already holds a metrics.json unless `force`."""
-    existing = out_dir / "metrics.json"
-    if existing.exists() and not force:
-        raise OutDirError(
-            f"{existing} already exists (an earlier result): choose another --out, or pass --force "
-            "to overwrite it"
-        )
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=out_dir, prefix=".write-test-"):
-            pass
-    except OSError as err:
-        raise OutDirError(f"cannot write results to {out_dir}: {err.strerror or err}") from None
-    if not os.access(out_dir, os.W_OK):
-        raise OutDirError(f"cannot write results to {out_dir}: not writable")
-    return out_dir
 
 
 def run_suite(args, p, motions=None) -> int:

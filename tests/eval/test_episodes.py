@@ -12,6 +12,7 @@ import pytest
 
 from lasmp.eval import breakdown as bd
 from lasmp.eval import episodes as ep
+from lasmp.eval import platform_probe as pp
 from lasmp.eval.run import cause_names
 
 DT = 0.02
@@ -30,7 +31,7 @@ def static(r, steps=STEPS):
 
 
 def stats(motion, mu):
-    return ep.motion_stats(DT, *motion, np.array([mu]), top_m=0.1)
+    return pp.motion_stats(DT, *motion, np.array([mu]), top_m=0.1)
 
 
 def test_a_level_platform_at_rest_never_forces():
@@ -78,7 +79,7 @@ def test_apparent_gravity_includes_the_centripetal_term_of_a_spinning_platform()
     angles = w * np.arange(steps) * DT
     r_wp = np.stack([rot_x(a) for a in angles])[:, None]
     omega = np.tile([w, 0.0, 0.0], (steps, 1, 1))
-    g = ep.apparent_gravity_p(DT, r_wp, np.zeros((steps, 1, 3)), omega, top_m=0.1)
+    g = pp.apparent_gravity_p(DT, r_wp, np.zeros((steps, 1, 3)), omega, top_m=0.1)
     expected_z = -9.81 * np.cos(angles[1:-1]) + w**2 * 0.1
     np.testing.assert_allclose(g[1:-1, 0, 2], expected_z, atol=2e-3)
 

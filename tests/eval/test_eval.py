@@ -314,7 +314,7 @@ def test_evaluate_fails_at_once_on_an_unwritable_output_directory(tmp_path):
 def test_the_default_output_directory_differs_for_the_same_checkpoint_name_of_two_runs(tmp_path):
     from types import SimpleNamespace
 
-    from lasmp.eval.cli import default_out_dir
+    from lasmp.eval.outdir import default_out_dir
 
     def out_dir(checkpoint, controller=None):
         return default_out_dir(SimpleNamespace(checkpoint=checkpoint, controller=controller), Path("eval"))

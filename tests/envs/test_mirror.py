@@ -73,7 +73,7 @@ def test_a_map_that_is_not_a_signed_permutation_and_an_unmapped_group_are_refuse
 
 
 def test_the_mirror_keeps_the_nominal_stance_and_swaps_each_legs_gains():
-    q_nom = torch.as_tensor(a1.Q_NOMINAL_RAD)
+    q_nom = torch.tensor(a1.Q_NOMINAL_RAD)  # a copy: the constant is read-only
     torch.testing.assert_close(m.JOINT_ANGLES(q_nom), q_nom)  # hips +-0.1 swap sides and signs
     kp = torch.arange(12.0)
     assert m.JOINT_GAINS(kp)[:3].tolist() == [3.0, 4.0, 5.0]  # FR takes FL's

@@ -23,20 +23,25 @@ from pathlib import Path
 from lasmp.atomic import remove_stale_temporaries
 
 LOCK_NAME = ".lock"
-_CHECKPOINT = re.compile(r"model_(\d+)\.pt")
+FULL, POLICY = "model", "policy"  # the file name prefixes of full and policy checkpoints in a run
+CHECKPOINT_NAME = re.compile(rf"({FULL}|{POLICY})_(\d+)\.pt")
 
 
 class RunDirError(ValueError):
     """A run directory cannot be used as asked; the message names it and says why."""
 
 
-def checkpoints(run_dir: str | Path) -> dict[int, Path]:
-    """The `model_<N>.pt` files of `run_dir`, by N."""
-    found = {}
-    for path in Path(run_dir).glob("model_*.pt"):
-        m = _CHECKPOINT.fullmatch(path.name)
-        if m:
-            found[int(m.group(1))] = path
+def run_checkpoints(run_dir: str | Path, full_only: bool = False) -> dict[int, Path]:
+    """The checkpoints of `run_dir` by iteration, oldest first: `model_<N>.pt` (full) and
+    `policy_<N>.pt` (policy only; `full_only` leaves them out). Where both exist for an N, the full
+    one: it holds everything the policy one does."""
+    found: dict[int, Path] = {}
+    for path in Path(run_dir).glob("*_*.pt"):
+        m = CHECKPOINT_NAME.fullmatch(path.name)
+        if m and not (full_only and m.group(1) == POLICY):
+            n = int(m.group(2))
+            if n not in found or m.group(1) == FULL:
+                found[n] = path
     return dict(sorted(found.items()))
 
 
@@ -44,7 +49,7 @@ def run_files(run_dir: str | Path) -> list[str]:
     """The names of the files that make `run_dir` a run's directory: config.yaml, model_<N>.pt."""
     run_dir = Path(run_dir)
     names = ["config.yaml"] if (run_dir / "config.yaml").is_file() else []
-    return names + [p.name for p in checkpoints(run_dir).values()]
+    return names + [p.name for p in run_checkpoints(run_dir, full_only=True).values()]
 
 
 def describe(names: list[str]) -> str:

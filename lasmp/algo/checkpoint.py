@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import os
 import pickle
-import re
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -35,6 +34,7 @@ import numpy as np
 import torch
 
 from lasmp.atomic import atomic_open
+from lasmp.rundir import CHECKPOINT_NAME, FULL, POLICY, run_checkpoints
 
 CHECKPOINT_FORMAT = "lasmp-checkpoint-v1"
 REQUIRED_KEYS = ("actor_state_dict", "critic_state_dict", "config", "obs_layout", "num_actions", "iter")
@@ -50,24 +50,6 @@ class CheckpointError(ValueError):
 def obs_layout(obs) -> dict[str, list[int]]:
     """Per-group shapes of one env's observation (batch dimension dropped)."""
     return {key: list(value.shape[1:]) for key, value in obs.items()}
-
-
-FULL, POLICY = "model", "policy"  # the file name prefixes of full and policy checkpoints in a run
-_NAME = re.compile(rf"({FULL}|{POLICY})_(\d+)\.pt")
-
-
-def run_checkpoints(run_dir: str | Path, full_only: bool = False) -> dict[int, Path]:
-    """The checkpoints of `run_dir` by iteration, oldest first: `model_<N>.pt` (full) and
-    `policy_<N>.pt` (policy only; `full_only` leaves them out). Where both exist for an N, the full
-    one: it holds everything the policy one does."""
-    found: dict[int, Path] = {}
-    for path in Path(run_dir).glob("*_*.pt"):
-        m = _NAME.fullmatch(path.name)
-        if m and not (full_only and m.group(1) == POLICY):
-            n = int(m.group(2))
-            if n not in found or m.group(1) == FULL:
-                found[n] = path
-    return dict(sorted(found.items()))
 
 
 def latest_checkpoint(run_dir: str | Path, full_only: bool = False) -> Path:
@@ -104,7 +86,7 @@ def refuse_policy_only(data: dict) -> None:
 
 def _converted(path: Path) -> str:
     """For a missing `model_<N>.pt` whose `policy_<N>.pt` exists: what became of it."""
-    m = _NAME.fullmatch(path.name)
+    m = CHECKPOINT_NAME.fullmatch(path.name)
     policy = path.with_name(f"{POLICY}_{m.group(2)}.pt") if m and m.group(1) == FULL else None
     if policy is None or not policy.exists():
         return ""

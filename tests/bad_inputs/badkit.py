@@ -268,3 +268,8 @@ def _scale(key, value, index=(0,)):
         a[key][index] = value
 
     return change
+
+
+def remount(where: Path, read_only: bool) -> None:
+    """Turn a tmpfs from the `tmpfs` fixture (conftest.py) read-only (or writable again) under a running command."""
+    subprocess.run(["mount", "-o", f"remount,{'ro' if read_only else 'rw'}", str(where)], check=True)

@@ -2,7 +2,12 @@
 
 import sys
 
-from lasmp.eval.cli import main
-
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        from lasmp.eval.cli import main  # torch and the physics: seconds, in which Ctrl-C is likely
+
+        code = main()
+    except KeyboardInterrupt:  # before main() claimed anything (main reports its own)
+        print("interrupted: nothing written", file=sys.stderr)
+        code = 130
+    sys.exit(code)

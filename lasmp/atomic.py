@@ -4,12 +4,16 @@ Both helpers write to a temporary file in the target's directory (a hidden `.<na
 flush it to disk, give it mode 0644 and rename it over the target (`os.replace` is atomic on
 POSIX); on any error the temporary file is removed and the target is untouched. A failure of the
 file system (disk full, no permission, a parent that is a file) raises `AtomicWriteError`, whose
-message is one line naming the target. Only a killed process leaves a temporary file behind:
+message is one line naming the target: also where a writer wraps the OSError in its own exception
+(torch's zip writer raises `RuntimeError: [enforce fail at inline_container.cc]` after the OSError
+of a full disk), since the OSError is then only in the exception's chain and a handler of OSError
+would never see it. Only a killed process leaves a temporary file behind:
 `remove_stale_temporaries` clears them where no writer can be running (a locked run directory).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 from collections.abc import Callable, Iterator
@@ -44,11 +48,26 @@ def _replacing(path: str | os.PathLike) -> Iterator[str]:
         os.chmod(tmp, 0o644)  # mkstemp makes 0600
         os.replace(tmp, path)
     except BaseException as err:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        if isinstance(err, OSError) and not isinstance(err, AtomicWriteError):
-            raise AtomicWriteError(path, err) from err
+        with contextlib.suppress(OSError):  # never let the cleanup replace the error (a read-only disk)
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        cause = file_system_error(err)
+        if cause is not None and not isinstance(err, AtomicWriteError):
+            raise AtomicWriteError(path, cause) from err
         raise
+
+
+def file_system_error(err: BaseException) -> OSError | None:
+    """The OSError behind `err`: `err` itself, or one in its chain (`__cause__` / `__context__`) when
+    a writer raised its own exception while handling it; None for other errors (a bug, an
+    interruption), which must not be reported as a failed write."""
+    seen = set()
+    while isinstance(err, Exception) and id(err) not in seen:
+        if isinstance(err, OSError):
+            return err
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return None
 
 
 @contextmanager

@@ -86,6 +86,11 @@ def unpack(saved, like=None, device: torch.device | str | None = None, name: str
 
 def _unpack_tagged(saved: dict, like, device, name: str, classes):
     kind = saved[TAG]
+    # a file from elsewhere may hold anything under a tag: a wrong type is refused here, as a
+    # PlainStateError naming it, never an AttributeError traceback deep in the restore
+    want = {"ndarray": ("data", torch.Tensor), "tensordict": ("data", dict), "dataclass": ("fields", dict)}
+    if kind in want and not isinstance(saved.get(want[kind][0]), want[kind][1]):
+        raise PlainStateError(f"{name}: a stored {kind} without its {want[kind][0]}")
     if kind == "ndarray":
         return saved["data"].cpu().numpy()
     if kind == "tensordict":

@@ -1,7 +1,8 @@
 """Play a trained LAS-MP policy: the logic behind `play.py`.
 
     python play.py --checkpoint PATH [--num-envs 1] [--steps 500] [--seed S] [--video out.mp4]
-                   [--snapshots out.png] [--viewer] [--export onnx --out DIR] [--trajectories FILE | --scenario NAME]
+                   [--snapshots out.png] [--viewer] [--export onnx --out DIR] [--force]
+                   [--trajectories FILE | --scenario NAME | --benchmark-episode K [--benchmark FILE]]
 
 The env and the policy are rebuilt from the checkpoint's own config (never today's defaults);
 only the number of envs, the seed and (optionally) the trajectory file are overridden. The policy
@@ -15,6 +16,11 @@ offscreen with `mujoco.Renderer`, which needs an OpenGL backend without a displa
 `MUJOCO_GL=osmesa` with libosmesa6 installed (slow, software). `--video` also needs imageio and
 imageio-ffmpeg (`pip install -e .[video]`). `--viewer` opens MuJoCo's interactive viewer and
 needs a display (DISPLAY or WAYLAND_DISPLAY).
+
+Every file it writes (video, snapshots, export) is checked before the env is built (its extension,
+its directory, and that it replaces no file without --force) and is written whole or not at all.
+A write that fails is one line naming the file (exit 1); a Ctrl-C says what was and was not written
+(exit 130).
 """
 
 from __future__ import annotations
@@ -30,18 +36,24 @@ from lasmp.algo.checkpoint import CheckpointError
 from lasmp.config import ConfigError
 from lasmp.deploy import load_deploy_env
 from lasmp.envs.trajectories import TrajectoryFileError
-from lasmp.modules.export import deploy_metadata, export_policy
+from lasmp.inputs import InputError, int_arg, seed_arg
+from lasmp.modules.export import deploy_metadata
+from lasmp.render.outputs import EXPORT_FILES, Outputs, check_outputs, export_into
 from lasmp.render.renderer import (
     SNAPSHOT_COUNT,
     EnvRenderer,
     RenderError,
     VideoWriter,
+    check_offscreen_gl,
     env_state,
+    ffmpeg_exe,
     frame_caption,
     save_snapshots,
     snapshot_steps,
 )
 from lasmp.render.viewer import Viewer, has_display
+
+DEFAULT_BENCHMARK = "benchmarks/xi_eval.npz"  # evaluate.py's; made on first use
 
 
 # ---------------------------------------------------------------------------------------------
@@ -84,12 +96,14 @@ class EpisodeStrip:
         return [renderer.frame(self.captions[k], self.states[k]) for k in self.picks()]
 
 
-def rollout(env, policy, steps: int, video=None, strip: EpisodeStrip | None = None, viewer=None) -> dict:
+def rollout(
+    env, policy, steps: int, video=None, strip: EpisodeStrip | None = None, viewer=None, progress=None
+) -> dict:
     """Run `steps` deterministic policy steps; return the summary counts.
 
     video: (EnvRenderer, VideoWriter) for a frame per step, captioned; strip: an EpisodeStrip that
     keeps env 0's states for the snapshots; viewer: a Viewer to sync each step (closing it ends the
-    run).
+    run); progress: an object whose `steps` is set after each step (what an interrupted run reports).
     """
     episodes = collisions = collisions_env0 = 0
     reward_sum = 0.0
@@ -99,6 +113,8 @@ def rollout(env, policy, steps: int, video=None, strip: EpisodeStrip | None = No
         for _ in range(steps):
             obs, reward, dones, extras = env.step(policy(obs))
             done_steps += 1
+            if progress is not None:
+                progress.steps = done_steps
             collided = dones & ~extras["time_outs"]
             episodes += int(dones.sum())
             collisions += int(collided.sum())
@@ -131,11 +147,13 @@ def summary_line(s: dict, num_envs: int) -> str:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="play.py", description="Play (and render or export) a LAS-MP policy.")
     p.add_argument("--checkpoint", required=True, help="a checkpoint file or a run directory (its latest)")
-    p.add_argument("--num-envs", type=int, default=1)
-    p.add_argument("--steps", type=int, default=None, help="policy steps (50 per second; default 500)")
+    p.add_argument("--num-envs", type=int_arg(1), default=1)
+    p.add_argument(
+        "--steps", type=int_arg(0), default=None, help="policy steps (50 per second; default 500; 0: none)"
+    )
     p.add_argument(
         "--seed",
-        type=int,
+        type=seed_arg,
         default=None,
         help="fresh random streams from this seed (other episodes); default: the checkpoint's own at the save",
     )
@@ -147,9 +165,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--viewer", action="store_true", help="show env 0 in MuJoCo's viewer (needs a display)")
     p.add_argument(
-        "--export", choices=("onnx",), help="write the deployable policy to --out (docs/deploy.md)"
+        "--export",
+        choices=("onnx",),
+        help=f"write the deployable policy to --out DIR ({' and '.join(EXPORT_FILES)}; docs/deploy.md)",
     )
     p.add_argument("--out", help="directory for --export")
+    p.add_argument(
+        "--force", action="store_true", help="overwrite an existing --video, --snapshots or --export file"
+    )
     p.add_argument("--trajectories", help="a trajectory file (.npz) replayed instead of sampled trajectories")
     p.add_argument(
         "--scenario",
@@ -158,15 +181,39 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--benchmark-episode",
-        type=int,
+        type=int_arg(0),
         default=None,
         metavar="K",
         help="play benchmark episode K (its trajectory and robot; see --benchmark) and the ones after",
     )
     p.add_argument(
-        "--benchmark", default="benchmarks/xi_eval.npz", help="the benchmark file for --benchmark-episode"
+        "--benchmark",
+        default=None,
+        help=f"the benchmark file for --benchmark-episode (default {DEFAULT_BENCHMARK})",
     )
     return p
+
+
+def refuse_conflicts(parser: argparse.ArgumentParser, args) -> None:
+    """Options that cannot go together, or one that would be ignored, as a parser error (exit 2).
+
+    A benchmark episode is a trajectory and a robot of its own, so --trajectories would be ignored
+    and --scenario would play a hybrid (the scenario's drive, the benchmark's motion)."""
+    if args.export and not args.out:
+        parser.error("--export needs --out DIR")
+    if args.out and not args.export:
+        parser.error("--out is the directory of --export; give --export onnx too")
+    if args.scenario and args.trajectories:
+        parser.error("give --scenario or --trajectories, not both")
+    if args.benchmark_episode is not None and (args.trajectories or args.scenario):
+        which = "--trajectories" if args.trajectories else "--scenario"
+        parser.error(
+            f"--benchmark-episode plays the benchmark's own trajectories: give it or {which}, not both"
+        )
+    if args.benchmark is not None and args.benchmark_episode is None:
+        parser.error("--benchmark is read only with --benchmark-episode K")
+    if args.video and args.steps == 0:
+        parser.error("--video needs --steps >= 1 (a video of no frames is not a video)")
 
 
 def scenario_file(name: str) -> tuple[str, dict]:
@@ -201,19 +248,37 @@ def use_benchmark_episodes(env, path: str, first: int) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.export and not args.out:
-        parser.error("--export needs --out DIR")
-    if args.scenario and args.trajectories:
-        parser.error("give --scenario or --trajectories, not both")
-    if args.num_envs < 1 or (args.steps is not None and args.steps < 0):
-        parser.error("--num-envs must be >= 1 and --steps >= 0")
+    refuse_conflicts(parser, args)
     if args.viewer and not has_display():
         print(
-            "--viewer needs a display (DISPLAY or WAYLAND_DISPLAY is unset); use --video or --snapshots "
+            "error: --viewer needs a display (DISPLAY or WAYLAND_DISPLAY is unset); use --video or --snapshots "
             "to render offscreen",
             file=sys.stderr,
         )
         return 2
+    try:  # every file this run writes, checked before the env is built
+        outputs = Outputs(check_outputs(args))
+        if args.video:
+            ffmpeg_exe()
+        if args.video or args.snapshots:
+            check_offscreen_gl()
+    except (InputError, RenderError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    try:
+        return play(args, outputs)
+    except KeyboardInterrupt:
+        outputs.remove_new_empty_dirs()
+        print(outputs.interrupted(), file=sys.stderr)
+        return 130
+    except OSError as err:  # a write that failed (AtomicWriteError: a full disk, ...); it names the file
+        outputs.remove_new_empty_dirs()
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+
+
+def play(args, outputs: Outputs) -> int:
+    """main's work once its options and files are checked: load, export, roll out, write."""
     try:
         # episodes as evaluation plays them: a training run's hold past T is training's alone
         trajectories, overrides = args.trajectories, {"trajectory": {"hold_s": 0.0}}
@@ -226,11 +291,12 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             if args.scenario:  # the env holds the motion in memory; the file was only the way in
                 shutil.rmtree(Path(trajectories).parent, ignore_errors=True)
-        if args.steps is None:
+        steps = args.steps
+        if steps is None:
             # the last frame before the reset
-            args.steps = env.max_episode_length - 1 if args.scenario else 500
+            steps = env.max_episode_length - 1 if args.scenario else 500
         if args.benchmark_episode is not None:
-            use_benchmark_episodes(env, args.benchmark, args.benchmark_episode)
+            use_benchmark_episodes(env, args.benchmark or DEFAULT_BENCHMARK, args.benchmark_episode)
     except (CheckpointError, TrajectoryFileError, ConfigError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -239,31 +305,37 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.export:
         metadata = deploy_metadata(policy, cfg, data["iter"], Path(data["path"]).name)
-        path = export_policy(policy, args.out, metadata)
-        sidecar = path.parent / "policy.json"
+        path, sidecar = files = export_into(policy, Path(args.out), metadata)
+        outputs.written += files
         print(f"exported {args.export} policy to {path} (metadata in {sidecar})", flush=True)
 
     closers = []
     video = viewer = shots = None
     strip = EpisodeStrip(env) if args.snapshots else None
+    outputs.total_steps = steps
     try:
         if args.video or args.snapshots:  # one renderer (camera following the platform) serves both
             renderer = EnvRenderer(env, follow=True)
             closers.append(renderer)
         if args.video:
             writer = VideoWriter(args.video, fps=1.0 / env.dt_s)
-            closers.append(writer)
             video = (renderer, writer)
         if args.viewer:
             viewer = Viewer(env)
             closers.append(viewer)
-        stats = rollout(env, policy, args.steps, video, strip, viewer)
+        outputs.steps = 0
+        stats = rollout(env, policy, steps, video, strip, viewer, progress=outputs)
+        if video:
+            writer.close()  # the finished file renamed into place
+            outputs.written.append(Path(args.video))
         if strip:
             shots = strip.frames(renderer)
     except RenderError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     finally:
+        if video and Path(args.video) not in outputs.written:
+            writer.abort()  # a failed or interrupted run: no partial video
         for c in reversed(closers):
             c.close()
     print(summary_line(stats, env.num_envs), flush=True)
@@ -271,6 +343,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {video[1].frames} frames to {args.video}", flush=True)
     if shots:
         save_snapshots(shots, args.snapshots)
+        outputs.written.append(Path(args.snapshots))
         first, last = strip.times_s[0], strip.times_s[-1]
         print(
             f"wrote {len(shots)} snapshots of env 0's episode, t {first:.2f} to {last:.2f} s, to {args.snapshots}",

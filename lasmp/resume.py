@@ -14,11 +14,14 @@ from __future__ import annotations
 
 import contextlib
 import re
+import shlex
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo.checkpoint import (
@@ -148,6 +151,11 @@ def check_resume(cfg: TrainCfg, data: dict) -> dict[str, tuple]:
         check_finite({k: data[k] for k in data if k.endswith("state_dict")}, f"checkpoint {path}")
     except FloatingPointError as err:
         raise CheckpointError(f"{err}: it cannot be resumed (give an earlier checkpoint)") from None
+    insane = insane_entry(data)
+    if insane:
+        raise CheckpointError(
+            f"checkpoint {path}: {insane}: it cannot be resumed (give an earlier checkpoint)"
+        )
     saved, now = flatten(data["config"]), flatten(to_plain(cfg))
     changed = {
         k: (saved[k], now[k])
@@ -169,6 +177,93 @@ def check_resume(cfg: TrainCfg, data: dict) -> dict[str, tuple]:
         )
     changed.pop("env.num_envs", None)
     return changed
+
+
+# what a resumed training reads from a checkpoint besides its networks: every number in them must be finite
+RESUMED_STATE = (
+    "optimizer_state_dict",
+    "estimator_optimizer_state_dict",
+    "rnd_optimizer_state_dict",
+    "env_state",
+    "rng_state",
+    "episode_log_state",
+)
+
+
+def _numbers(obj, name: str):
+    """(entry name, value) of every number in a checkpoint's nested state: tensors and numpy arrays
+    (floating ones), floats."""
+    if isinstance(obj, torch.Tensor):
+        if obj.is_floating_point():
+            yield name, obj
+    elif isinstance(obj, np.ndarray):
+        if obj.dtype.kind == "f":
+            yield name, obj
+    elif isinstance(obj, float):
+        yield name, obj
+    elif isinstance(obj, dict):
+        for key, value in obj.items():
+            yield from _numbers(value, f"{name}.{key}" if name else str(key))
+    elif isinstance(obj, (list, tuple)):
+        for i, value in enumerate(obj):
+            yield from _numbers(value, f"{name}[{i}]")
+
+
+def _all(value, test) -> bool:
+    if isinstance(value, torch.Tensor):
+        return bool(test(value.double()).all()) if value.numel() else True
+    return bool(np.all(test(np.asarray(value, dtype=np.float64))))
+
+
+def _shown(value) -> str:
+    """The first offending number of `value`, for the message."""
+    flat = (
+        value.detach().double().flatten().tolist()
+        if isinstance(value, torch.Tensor)
+        else np.ravel(value).tolist()
+    )
+    return (
+        str(flat[0])
+        if len(flat) == 1
+        else f"[{', '.join(str(v) for v in flat[:3])}{', ...' if len(flat) > 3 else ''}]"
+    )
+
+
+# ranges of the training state a resume continues from, by the entry's last name: a NaN learning rate
+# or a negative standard deviation is as fatal as a NaN weight (torch.normal fails on std < 0 at the
+# first action), but check_finite, which reads tensors only, lets a float `lr` through
+SANE = {
+    "lr": (lambda v: v > 0, "a learning rate must be > 0"),
+    "eps": (lambda v: v >= 0, "Adam's eps must be >= 0"),
+    "betas": (lambda v: (v >= 0) & (v < 1), "Adam's betas must be in [0, 1)"),
+    "weight_decay": (lambda v: v >= 0, "a weight decay must be >= 0"),
+    "exp_avg_sq": (lambda v: v >= 0, "Adam's second moments must be >= 0"),
+    "step": (lambda v: v >= 0, "Adam's step count must be >= 0"),
+    "std_param": (lambda v: v > 0, "the action noise's standard deviation must be > 0"),
+    "_var": (lambda v: v >= 0, "a normalizer's variance must be >= 0"),
+    "_std": (lambda v: v >= 0, "a normalizer's standard deviation must be >= 0"),
+    "count": (lambda v: v >= 0, "a normalizer's count must be >= 0"),
+}
+
+
+def insane_entry(data: dict) -> str | None:
+    """The first entry of a checkpoint's training state that a training cannot continue from, in
+    words (None: all sane): a non-finite number anywhere in the state a resume restores (networks,
+    optimizers, the envs' running state, random and logging state), or a value outside its range
+    (`SANE`: learning rates > 0, standard deviations > 0, ...). Why: such a state trains on for a
+    step or two and then fails far from its cause (`normal expects std >= 0`, rsl_rl's reward-NaN
+    error)."""
+    state = {k: data[k] for k in data if k.endswith("state_dict") or k in RESUMED_STATE}
+    for name, value in _numbers(state, ""):
+        if not _all(value, np.isfinite if not isinstance(value, torch.Tensor) else torch.isfinite):
+            return f"{name} is not finite ({_shown(value)})"
+        last = name.rsplit(".", 1)[-1].split("[")[0]
+        rule = SANE.get(last) if not last.startswith("log_") else None
+        if last.endswith("std_param") and not last.startswith("log"):
+            rule = SANE["std_param"]
+        if rule and not _all(value, rule[0]):
+            return f"{name} = {_shown(value)} is out of range ({rule[1]})"
+    return None
 
 
 def _refuse_fixed(changed: dict[str, tuple]) -> None:
@@ -291,4 +386,17 @@ def resume_command(checkpoint: str, log_dir: str, iterations_left: int | None = 
     keep = [o.removeprefix("+") for o in overrides if not o.lstrip("+~").startswith(drop)]
     if iterations_left is not None:
         keep.append(f"runner.max_iterations={max(iterations_left, 1)}")
-    return " ".join(["python train.py", *keep, f"resume={checkpoint}", f"runner.log_dir={log_dir}"])
+    keep += [f"resume={hydra_quote(checkpoint)}", f"runner.log_dir={hydra_quote(log_dir)}"]
+    # quoted for the shell, so that it can be pasted: a path with a space, brackets of a list
+    return " ".join(["python train.py", *map(shlex.quote, keep)])
+
+
+def hydra_quote(value: str) -> str:
+    """`value` as a Hydra override's value: as it is where Hydra reads it whole, else in Hydra's
+    double quotes (a path with a comma would be a sweep, one with brackets or quotes a parse error).
+    In them a quote is escaped, and so are the backslashes before a quote or at the end (Hydra's rule)."""
+    if re.fullmatch(r"[\w./@:+-]+", value):
+        return value
+    escaped = re.sub(r'(\\*)"', lambda m: m.group(1) * 2 + '\\"', value)
+    escaped = re.sub(r"(\\+)$", lambda m: m.group(1) * 2, escaped)
+    return f'"{escaped}"'

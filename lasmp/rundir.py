@@ -4,7 +4,8 @@
 - `RunLock`: a training holds `fcntl.flock` on `<dir>/.lock`, a file that holds its PID, for as long
   as it runs; a second process gets `RunDirError` naming that PID. The kernel drops the lock when a
   process ends, however it ends, so a `.lock` left by a killed training blocks nothing; a training
-  that ends removes it.
+  that ends removes it (where it can: on a directory turned read-only the `.lock` stays, and the
+  error that ended the training is the one reported).
 - `claim`: create the directory, lock it, check what it holds and remove the temporary files of
   saves killed mid-write; a start that fails leaves no directory it created behind.
 
@@ -13,6 +14,7 @@ This module imports no torch, so that another process can take a run's lock chea
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import re
@@ -61,10 +63,17 @@ def describe(names: list[str]) -> str:
 class RunLock:
     """An exclusive lock on a run directory for this process (see the module docstring)."""
 
-    def __init__(self, run_dir: str | Path):
+    def __init__(self, run_dir: str | Path, path: Path | None = None):
         self.run_dir = Path(run_dir)
-        self.path = self.run_dir / LOCK_NAME
+        self.path = self.run_dir / LOCK_NAME if path is None else path
         self._fd: int | None = None
+
+    def busy(self, holder: str) -> Exception:
+        """The error when another process holds the lock (subclasses name their own users)."""
+        return RunDirError(
+            f"{self.run_dir} is in use by another training (PID {holder}): wait for it to end, or "
+            "give another runner.log_dir"
+        )
 
     def acquire(self) -> None:
         """Take the lock, or raise RunDirError naming the PID of the process that holds it."""
@@ -75,10 +84,7 @@ class RunLock:
             except BlockingIOError:
                 holder = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
                 os.close(fd)
-                raise RunDirError(
-                    f"{self.run_dir} is in use by another training (PID {holder}): wait for it to end, or "
-                    "give another runner.log_dir"
-                ) from None
+                raise self.busy(holder) from None
             # a holder that ended may have removed the file between our open and our lock: lock anew
             try:
                 same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
@@ -87,17 +93,29 @@ class RunLock:
             if same:
                 break
             os.close(fd)
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+        except OSError:  # a full disk cannot take the PID: no lock is held by a lost descriptor
+            with contextlib.suppress(OSError):
+                self.path.unlink(missing_ok=True)  # while still held, as release does
+            os.close(fd)
+            raise
         self._fd = fd
 
     def release(self) -> None:
+        """Unlock and remove `.lock`. Never raises: it runs while another error may be on its way out
+        (a save that failed when the directory turned read-only), and a `.lock` it cannot remove
+        blocks nothing (the kernel's lock is what counts, and closing the file drops it)."""
         if self._fd is None:
             return
-        self.path.unlink(missing_ok=True)  # while still held: a process that opened it locks anew
-        fcntl.flock(self._fd, fcntl.LOCK_UN)
-        os.close(self._fd)
-        self._fd = None
+        fd, self._fd = self._fd, None
+        with contextlib.suppress(OSError):  # while still held: a process that opened it locks anew
+            self.path.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            fcntl.flock(fd, fcntl.LOCK_UN)
+        with contextlib.suppress(OSError):
+            os.close(fd)
 
     def __enter__(self) -> RunLock:
         self.acquire()

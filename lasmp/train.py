@@ -10,7 +10,10 @@ import contextlib
 import dataclasses
 import datetime
 import os
+import shutil
 import sys
+import threading
+import traceback
 from pathlib import Path
 
 import torch
@@ -19,13 +22,15 @@ from omegaconf import OmegaConf
 from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import CheckpointError
 from lasmp.algo.runner import LasmpRunner, TrainingFaulted, TrainingInterrupted
-from lasmp.atomic import atomic_open
+from lasmp.atomic import AtomicWriteError, atomic_open
 from lasmp.config import ConfigError
 from lasmp.envs import registry
 from lasmp.envs.trajectories import TrajectoryFileError
+from lasmp.inputs import SEED_MAX
 from lasmp.resume import Resume, check_run_dir, explicit_keys, hydra_overrides, resume_command
-from lasmp.rundir import RunDirError, claim
+from lasmp.rundir import RunDirError, claim, run_checkpoints
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
+from lasmp.train_resources import check_disk_space, check_memory
 
 
 def seed_everything(seed: int) -> None:
@@ -48,9 +53,10 @@ def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunne
         )
     if cfg.torch_threads > 0:
         torch.set_num_threads(cfg.torch_threads)
-    seed_everything(cfg.seed + rank)
+    seed = (cfg.seed + rank) % (SEED_MAX + 1)  # a seed near 2**32 - 1 stays a valid seed on every rank
+    seed_everything(seed)
     env = make_env(
-        cfg if rank == 0 else dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, seed=cfg.seed + rank))
+        cfg if rank == 0 else dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, seed=seed))
     )
     return LasmpRunner(
         env,
@@ -64,8 +70,29 @@ def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunne
 
 
 def default_log_dir(cfg: TrainCfg) -> str:
+    """logs/<task>/<policy>/<date_time>, unique per job: a Hydra multirun's job adds its number
+    (`-m seed=1,2,3` starts its jobs within one second), and a name already taken (two starts in the
+    same second) gets the first free suffix `-2`, `-3`, ... Two processes that pick one name at the
+    same instant still meet `claim`'s lock, and the second is refused naming the first."""
     stamp = datetime.datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
-    return os.path.join("logs", cfg.task, cfg.policy.name, stamp)
+    job = _multirun_job()
+    base = os.path.join("logs", cfg.task, cfg.policy.name, stamp + (f"_job{job}" if job is not None else ""))
+    path, n = base, 1
+    while os.path.lexists(path):
+        n += 1
+        path = f"{base}-{n}"
+    return path
+
+
+def _multirun_job() -> int | None:
+    """The job's number in a Hydra multirun (`train.py -m ...`); None in a single run."""
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    if not HydraConfig.initialized():
+        return None
+    hydra_cfg = HydraConfig.get()
+    return hydra_cfg.job.num if hydra_cfg.mode == RunMode.MULTIRUN else None
 
 
 def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
@@ -75,11 +102,16 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
     resume = Resume.check(cfg, explicit) if cfg.resume else None  # fails before anything is built
     cfg = resume.cfg if resume else cfg
     ranks = dp.ranks_from_env()  # torchrun: rank 0 alone holds the run directory, logs and saves
+    # an env.num_envs that cannot fit, refused before any allocation
+    check_memory(cfg, dp.local_world_size() if ranks.distributed else 1)
     if ranks.distributed:
         cfg.device = dp.rank_device(cfg.device, ranks)
         dp.setup(ranks, cfg.device)
     data = resume.data if resume else None
     log_dir = Path(cfg.runner.log_dir or (Path(data["path"]).parent if data else default_log_dir(cfg)))
+    if ranks.distributed:  # every rank knows rank 0's run directory: the one that outlives the other says it
+        log_dir = Path(dp.broadcast_from_main(str(log_dir)))
+    continuing = data is not None and Path(data["path"]).parent.resolve() == log_dir.resolve()
     owner = claim(log_dir, check_run_dir(log_dir, data)) if ranks.is_main else contextlib.nullcontext()
     say = print if ranks.is_main else (lambda *a, **k: None)
     with owner:
@@ -88,33 +120,117 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
             resume.restore(runner, say)
         first = runner.current_learning_iteration
         last = first + cfg.runner.max_iterations - 1  # the iteration this command ends at
-        if ranks.is_main:  # only now, with everything checked, the run directory's config
-            with atomic_open(log_dir / "config.yaml", "w") as f:
-                f.write(OmegaConf.to_yaml(to_plain(cfg)))
-        processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
-        span = f" ({first}\u2013{last})" if cfg.runner.max_iterations else ""
-        say(
-            f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs{processes}, {cfg.runner.max_iterations} "
-            f"iterations{span}, logs in {log_dir}",
-            flush=True,
-        )
+        if ranks.is_main:  # the first checkpoint must fit on the disk before anything is written
+            check_disk_space(runner, log_dir)
+        there_before = set(os.listdir(log_dir)) if ranks.is_main else set()
         try:
-            runner.learn(cfg.runner.max_iterations)
-        except TrainingInterrupted as stop:
-            if stop.checkpoint:
-                # on a resume, runner.max_iterations counts the iterations still to run: those left
-                left = last - stop.iteration
-                print(
-                    f"{stop}\nresume with:\n  {resume_command(stop.checkpoint, str(log_dir), left)}",
-                    flush=True,
-                )
+            if ranks.is_main:  # only now, with everything checked, the run directory's config
+                with atomic_open(log_dir / "config.yaml", "w") as f:
+                    f.write(OmegaConf.to_yaml(to_plain(cfg)))
+            processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
+            span = f" ({first}\u2013{last})" if cfg.runner.max_iterations else ""
+            say(
+                f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs{processes}, {cfg.runner.max_iterations} "
+                f"iterations{span}, logs in {log_dir}",
+                flush=True,
+            )
+            try:
+                runner.learn(cfg.runner.max_iterations)
+            except TrainingInterrupted as stop:
+                if stop.checkpoint:
+                    # on a resume, runner.max_iterations counts the iterations still to run: those left
+                    left = last - stop.iteration
+                    print(
+                        f"{stop}\nresume with:\n  {resume_command(stop.checkpoint, str(log_dir), left)}",
+                        flush=True,
+                    )
+                raise
+            except OSError as err:
+                raise _named(err, runner, log_dir) from err
+            except RuntimeError as err:
+                if ranks.distributed and dp.is_peer_lost(err):
+                    raise RankLost(
+                        ranks.rank, ranks.world_size, log_dir, last, runner.current_learning_iteration
+                    ) from err
+                raise
+        except BaseException:
+            if ranks.is_main and not continuing:
+                _remove_failed_start(log_dir, there_before)
             raise
     return runner
 
 
+class RankLost(RuntimeError):
+    """A rank of a torchrun job lost the others (one was killed, ran out of memory or crashed): the
+    message says so, names the run's newest checkpoint and the command that resumes from it."""
+
+    def __init__(self, rank: int, world_size: int, log_dir: Path, last: int, iteration: int):
+        saved = run_checkpoints(log_dir, full_only=True) if log_dir.is_dir() else {}
+        head = (
+            f"rank {rank} of the torchrun job lost the connection to the other processes (one of them ended: "
+            "killed, out of memory or crashed, see its own output); this one stops too"
+        )
+        if saved:
+            n, newest = next(reversed(saved.items()))
+            command = resume_command(str(newest), str(log_dir), last - n).replace(
+                "python train.py", f"torchrun --nproc_per_node={world_size} train.py", 1
+            )
+            tail = f". The newest checkpoint is {newest} (iteration {n}); resume with:\n  {command}"
+        else:
+            tail = f". No checkpoint was saved in {log_dir} (iteration {iteration} was under way): start the run anew"
+        super().__init__(head + tail)
+
+
+def _named(err: OSError, runner: LasmpRunner, log_dir: Path) -> OSError:
+    """A write error of training as one that names its file. The saves name theirs
+    (`AtomicWriteError`); rsl_rl's git diff and TensorBoard's events file raise a bare OSError,
+    without a file name, from their writes."""
+    if err.filename is not None:
+        return err
+    frames = traceback.extract_tb(err.__traceback__)
+    events = getattr(
+        getattr(getattr(runner.logger.writer, "file_writer", None), "event_writer", None), "_file_name", None
+    )
+    if any(f.name == "_store_code_state" for f in frames):
+        where = log_dir / "git"  # rsl_rl's record of the code's state: git/<repository>.diff
+    elif events is not None and (
+        err is _writer_error(runner) or any("tensorboard" in f.filename for f in frames)
+    ):
+        where = Path(events)
+    else:
+        where = log_dir
+    return AtomicWriteError(where, err)
+
+
+def _writer_error(runner: LasmpRunner) -> BaseException | None:
+    """The exception TensorBoard's writer thread stopped on (it raises the same one in the main thread)."""
+    event_writer = getattr(getattr(runner.logger.writer, "file_writer", None), "event_writer", None)
+    worker = getattr(getattr(event_writer, "_async_writer", None), "_worker", None)
+    return getattr(worker, "exception", None)
+
+
+# what a failed start of a new run may have written: they are removed when it saved no checkpoint
+START_FILES = ("config.yaml", "git")
+EVENTS_PREFIX = "events.out.tfevents."
+
+
+def _remove_failed_start(log_dir: Path, there_before: set[str]) -> None:
+    """A new run (or a branch) that ends in an error before its first checkpoint leaves nothing:
+    it could not be resumed, and its config.yaml would make the rerun refuse the directory as one
+    that holds a run. Only what this start wrote goes (config.yaml, rsl_rl's git/, TensorBoard's
+    events); a failure of the removal never replaces the error that ended the run."""
+    if not log_dir.is_dir() or run_checkpoints(log_dir):
+        return
+    for name in set(os.listdir(log_dir)) - there_before:
+        if name in START_FILES or name.startswith(EVENTS_PREFIX):
+            path = log_dir / name
+            with contextlib.suppress(OSError):
+                shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+
+
 # what a user can meet: bad input (exit 2) and a run that cannot go on (exit 1), each said in one line
 BAD_INPUT = (CheckpointError, ConfigError, RunDirError, TrajectoryFileError)
-CANNOT_GO_ON = (TrainingFaulted, FloatingPointError, OSError)
+CANNOT_GO_ON = (TrainingFaulted, FloatingPointError, OSError, RankLost)
 
 
 def main(cfg, overrides: list[str] | None = None) -> int:
@@ -125,7 +241,8 @@ def main(cfg, overrides: list[str] | None = None) -> int:
             overrides = hydra_overrides()
         resuming = getattr(cfg, "resume", None) and overrides is not None
         explicit = explicit_keys(overrides) if resuming else None
-        train(cfg, explicit)
+        with quiet_writer_threads():
+            train(cfg, explicit)
     except TrainingInterrupted as stop:  # checkpoint written and resume command printed
         return 128 + stop.signum
     except BAD_INPUT as err:
@@ -138,5 +255,26 @@ def main(cfg, overrides: list[str] | None = None) -> int:
         print("interrupted before training started: nothing saved", file=sys.stderr)
         return 130
     finally:
-        dp.teardown()
+        with contextlib.suppress(Exception):  # after a lost rank: never replace the error said above
+            dp.teardown()
     return 0
+
+
+@contextlib.contextmanager
+def quiet_writer_threads():
+    """TensorBoard writes its events file from a thread; on a full or read-only disk that thread dies
+    printing a traceback, and the main thread raises the same error at its next write, where train()
+    names the file (`_named`). Its traceback is left out; any other thread's is printed as usual."""
+    previous = threading.excepthook
+
+    def hook(args):
+        if not (
+            issubclass(args.exc_type, OSError) and type(args.thread).__module__.startswith("tensorboard")
+        ):
+            previous(args)
+
+    threading.excepthook = hook
+    try:
+        yield
+    finally:
+        threading.excepthook = previous

@@ -22,6 +22,7 @@ from lasmp.algo.symmetry import supports_mirror
 from lasmp.config import ConfigError, build_env_cfg, check_known_keys
 from lasmp.envs import registry
 from lasmp.envs.registry import env_schema
+from lasmp.inputs import InputError, check_seed
 from lasmp.modules.obs_groups import EXPLICIT_SELECTIONS
 
 ACTOR_CLASS = "lasmp.modules.policy:LasmpActor"
@@ -226,6 +227,10 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
     if not is_dataclass(cfg.env):
         raise ConfigError("env must be built with its task's schema (lasmp.train_cfg.to_train_cfg does it)")
     check_known_keys(cfg)  # a `+key=value` typo (Hydra appends it) or a misspelt attribute set in code
+    try:  # one rule for every seed (lasmp.inputs): -1 or 2**64 would fail deep in numpy or torch
+        check_seed(cfg.seed, "seed")
+    except InputError as err:
+        raise ConfigError(str(err)) from None
     schema = env_schema(cfg.task)
     if type(cfg.env) is not schema:
         raise ConfigError(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 
@@ -27,3 +29,19 @@ def eager_learners(request, monkeypatch):
         )
 
     monkeypatch.setattr(ppo_roa, "resolve_precision", eager)
+
+
+@pytest.fixture(scope="module")
+def gl():
+    """Skip the tests that render or write video where no headless OpenGL context (MUJOCO_GL=egl, or
+    osmesa) can be made, or imageio's ffmpeg is missing."""
+    from lasmp.render.renderer import select_gl_backend
+
+    select_gl_backend()
+    import mujoco
+
+    try:
+        mujoco.Renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 8, 8).close()
+    except Exception as err:  # no EGL/OSMesa library, no device, ...
+        pytest.skip(f"no offscreen OpenGL with MUJOCO_GL={os.environ.get('MUJOCO_GL')}: {err}")
+    pytest.importorskip("imageio_ffmpeg")

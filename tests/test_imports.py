@@ -13,7 +13,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lasmp"
 # from another package of its layer (the learner and the envs do not know each other)
 LAYERS = (
     ("lasmp.train", "lasmp.play", "lasmp.hydra_cli"),
-    ("lasmp.resume",),
+    ("lasmp.resume", "lasmp.train_resources"),
     ("lasmp.eval", "lasmp.render"),
     ("lasmp.deploy",),
     ("lasmp.checkpoint_cfg",),
@@ -22,7 +22,7 @@ LAYERS = (
     ("lasmp.algo", "lasmp.envs"),
     ("lasmp.modules",),
     ("lasmp.robots", "lasmp.config", "lasmp.plainstate", "lasmp.rundir"),
-    ("lasmp.atomic",),
+    ("lasmp.atomic", "lasmp.inputs"),
 )
 
 

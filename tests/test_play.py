@@ -124,20 +124,6 @@ def test_export_onnx_matches_torch_and_says_nothing_else(run_dir, loaded, tmp_pa
     np.testing.assert_allclose(actions, expected, atol=1e-5)
 
 
-@pytest.fixture(scope="module")
-def gl():
-    """Skip rendering tests where no headless OpenGL context (MUJOCO_GL=egl, or osmesa) can be made."""
-    from lasmp.render.renderer import select_gl_backend
-
-    select_gl_backend()
-    import mujoco
-
-    try:
-        mujoco.Renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 8, 8).close()
-    except Exception as err:  # no EGL/OSMesa library, no device, ...
-        pytest.skip(f"no offscreen OpenGL with MUJOCO_GL={os.environ.get('MUJOCO_GL')}: {err}")
-
-
 def test_video_and_snapshots(run_dir, tmp_path, gl):
     video, snaps = tmp_path / "play.mp4", tmp_path / "snaps.png"
     args = ["--checkpoint", str(run_dir), "--steps", "10", "--video", str(video), "--snapshots", str(snaps)]

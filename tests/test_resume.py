@@ -66,3 +66,24 @@ def test_an_env_option_sets_every_key_of_its_schema():
     keys = explicit_keys(["env=rough_static"])
     assert all(k.startswith("env.") for k in keys)
     assert {"env.num_envs", "env.terrain.resolution_m", "env.pushes.enabled"} <= keys
+
+
+@pytest.mark.parametrize(
+    "run_dir",
+    ["logs/run", "/runs/my run", "/runs/it's, [a]=b", "/runs/back\\slash", '/runs/"quoted"\\'],
+)
+def test_the_printed_resume_command_pastes_back_to_the_same_paths(run_dir):
+    """T08: a path with a space, a quote, a comma or brackets is quoted for the shell and for Hydra,
+    so that the printed command, pasted, resumes from that very checkpoint."""
+    import shlex
+
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from lasmp.resume import resume_command
+
+    checkpoint = f"{run_dir}/model_7.pt"
+    command = resume_command(checkpoint, run_dir, 3)
+    words = shlex.split(command)
+    assert words[:2] == ["python", "train.py"]
+    values = {o.key_or_group: o.value() for o in OverridesParser.create().parse_overrides(words[2:])}
+    assert values == {"runner.max_iterations": 3, "resume": checkpoint, "runner.log_dir": run_dir}

@@ -21,12 +21,18 @@ policy ones (`keep_newest_full`). A run directory given to play or evaluate mean
 checkpoint of either kind, given to a resume its newest full one (`latest_checkpoint`).
 It is written to a temporary file in the same directory and renamed over the target
 (`atomic_torch_save`), so an interrupted save never leaves a truncated checkpoint behind.
+Every command reads one through `read_checkpoint`: only a regular file (a FIFO would hang it), and
+only one that begins as a PyTorch checkpoint (an ONNX model, a text or .npz file is named for what
+it is); a checkpoint of a newer format than CHECKPOINT_VERSION says to update lasmp.
 """
 
 from __future__ import annotations
 
 import os
 import pickle
+import re
+import stat
+import zipfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -34,9 +40,12 @@ import numpy as np
 import torch
 
 from lasmp.atomic import atomic_open
+from lasmp.inputs import InputError, check_out_file
 from lasmp.rundir import CHECKPOINT_NAME, FULL, POLICY, run_checkpoints
 
-CHECKPOINT_FORMAT = "lasmp-checkpoint-v1"
+CHECKPOINT_VERSION = 1
+CHECKPOINT_FORMAT = f"lasmp-checkpoint-v{CHECKPOINT_VERSION}"
+CHECKPOINT_SUFFIXES = (".pt", ".pth")  # what the checkpoint tool writes
 REQUIRED_KEYS = ("actor_state_dict", "critic_state_dict", "config", "obs_layout", "num_actions", "iter")
 # the envs' running-state format (BaseEnv.RUN_STATE_FORMAT) that stores it as plain data: what
 # `convert_trusted` writes (a test holds it equal to the env's)
@@ -96,14 +105,85 @@ def _converted(path: Path) -> str:
     )
 
 
-def read_checkpoint(path: str | Path, map_location: str = "cpu", full_only: bool = False) -> dict:
-    """Load and sanity-check a checkpoint file (a run directory means its latest checkpoint, the
-    latest full one with `full_only`)."""
+def checkpoint_file(path: str | Path, full_only: bool = False) -> Path:
+    """The file a checkpoint argument names (a run directory: its latest checkpoint), checked to be a
+    regular file (a symlink to one included). Why: a FIFO waits for a writer for ever and /dev/zero
+    never ends, so torch.load would hang; a directory or a device is never a checkpoint."""
     path = Path(path)
     if path.is_dir():
         path = latest_checkpoint(path, full_only)
-    if not path.exists():
-        raise CheckpointError(f"checkpoint {path} does not exist{_converted(path)}")
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise CheckpointError(f"checkpoint {path} does not exist{_converted(path)}") from None
+    except OSError as err:  # a symlink loop, no permission
+        raise CheckpointError(f"checkpoint {path} cannot be read: {err.strerror or err}") from None
+    if not stat.S_ISREG(mode):
+        what = next((w for test, w in _NOT_REGULAR if test(mode)), "not a regular file")
+        if path.is_symlink():
+            what += f" (it links to {os.path.realpath(path)})"
+        raise CheckpointError(
+            f"checkpoint {path} is {what}, not a regular file: give a checkpoint file "
+            f"({FULL}_<N>.pt or {POLICY}_<N>.pt) or its run directory"
+        )
+    return path
+
+
+_NOT_REGULAR = (
+    (stat.S_ISFIFO, "a named pipe (FIFO)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+    (stat.S_ISDIR, "a directory"),
+)
+# how torch.save's older (pre-1.6, non-zip) files begin: a pickled magic number
+_TORCH_LEGACY_MAGIC = b"\x80\x02\x8a\x0a\x6c\xfc\x9c\x46\xf9\x20\x6a\xa8\x50\x19"
+
+
+def _not_torch(path: Path) -> str | None:
+    """What a regular file is when it cannot be a PyTorch checkpoint, from its first bytes (None where
+    it may be one). Why: torch.load of such a file fails with a message about pickles or zip
+    internals; of an ONNX model with the advice to `convert --trust` it, which then fails too."""
+    with open(path, "rb") as f:
+        head = f.read(512)
+    if not head:
+        return "an empty file, 0 bytes: an interrupted copy or save?"
+    if head.startswith(b"PK"):  # a zip archive, as torch.save writes
+        try:
+            with zipfile.ZipFile(path) as z:
+                names = z.namelist()
+        except (zipfile.BadZipFile, OSError, ValueError):
+            return None  # a truncated checkpoint: torch.load says so
+        if any(n == "data.pkl" or n.endswith("/data.pkl") for n in names):
+            return None
+        if names and all(n.endswith(".npy") for n in names):
+            return "a NumPy .npz archive: a trajectory or benchmark file?"
+        return "a zip archive without the data.pkl that torch.save writes"
+    if head.startswith(_TORCH_LEGACY_MAGIC):
+        return None
+    if path.suffix.lower() == ".onnx" or (head[0] == 0x08 and head[2:3] == b"\x12"):
+        return "an ONNX model? Play and evaluate take the .pt checkpoint it was exported from"
+    if head.startswith(b"\x93NUMPY"):
+        return "a NumPy .npy array"
+    if head[0] == 0x80:
+        return "a Python pickle that torch.save did not write"
+    if all(32 <= b < 127 or b in b"\t\n\r" for b in head):
+        return "a text file"
+    return "its content is neither a zip archive, as torch.save writes, nor an older torch file"
+
+
+def read_checkpoint(path: str | Path, map_location: str = "cpu", full_only: bool = False) -> dict:
+    """Load and sanity-check a checkpoint file (a run directory means its latest checkpoint, the
+    latest full one with `full_only`). The one loader of every command (train's resume, play,
+    evaluate, the checkpoint tool): only a regular file that looks like a PyTorch checkpoint reaches
+    torch.load, and a checkpoint of a newer format is told apart from a file that is none."""
+    path = checkpoint_file(path, full_only)
+    why = _not_torch(path)
+    if why is not None:
+        raise CheckpointError(
+            f"{path} is not a PyTorch checkpoint ({why}): unreadable as one. Give a lasmp checkpoint "
+            f"({FULL}_<N>.pt or {POLICY}_<N>.pt) or its run directory"
+        )
     try:
         data = torch.load(path, map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as err:
@@ -118,8 +198,7 @@ def read_checkpoint(path: str | Path, map_location: str = "cpu", full_only: bool
         raise CheckpointError(
             f"checkpoint {path} is unreadable (truncated or not a checkpoint): {err}"
         ) from err
-    if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
-        raise CheckpointError(f"{path} is not a lasmp checkpoint (no format '{CHECKPOINT_FORMAT}')")
+    _check_format(data, path)
     for key in REQUIRED_KEYS:
         if key not in data:
             raise CheckpointError(f"checkpoint {path} lacks '{key}'")
@@ -129,33 +208,63 @@ def read_checkpoint(path: str | Path, map_location: str = "cpu", full_only: bool
     return data
 
 
-def convert_trusted(src: str | Path, dst: str | Path) -> Path:
+def _check_format(data, path) -> None:
+    """Refuse what is not a lasmp checkpoint, and a newer one as newer (update lasmp), not as none."""
+    fmt = data.get("format") if isinstance(data, dict) else None
+    if fmt == CHECKPOINT_FORMAT:
+        return
+    m = re.fullmatch(r"lasmp-checkpoint-v(\d+)", fmt) if isinstance(fmt, str) else None
+    if m and int(m.group(1)) > CHECKPOINT_VERSION:
+        raise CheckpointError(
+            f"checkpoint {path} is of format '{fmt}', newer than this code, which reads "
+            f"'{CHECKPOINT_FORMAT}': update lasmp (git pull, or pip install -U) to read it"
+        )
+    got = f"format {fmt!r}" if fmt is not None else "no format"
+    raise CheckpointError(f"{path} is not a lasmp checkpoint ({got}; this code reads '{CHECKPOINT_FORMAT}')")
+
+
+def convert_trusted(src: str | Path, dst: str | Path, force: bool = False) -> Path:
     """Rewrite a checkpoint of an older lasmp (pickled running state) in today's plain format. This
     UNPICKLES `src`, which runs whatever code it holds: only for a file the user trusts (the CLI
-    asks for --trust)."""
-    from lasmp.plainstate import pack
+    asks for --trust). `dst` is checked (extension, an existing file only with `force`, a writable
+    directory) before `src` is read."""
+    from lasmp.plainstate import PlainStateError, pack
 
-    src, dst = Path(src), Path(dst)
-    if src.resolve() == dst.resolve():
+    src = checkpoint_file(src)
+    why = _not_torch(src)
+    if why is not None:
+        raise CheckpointError(f"{src} is not a PyTorch checkpoint ({why}): there is nothing to convert")
+    if src.resolve() == Path(dst).resolve():
         raise CheckpointError(f"convert writes a new file: OUT must differ from IN ({src})")
-    if dst.exists():
-        raise CheckpointError(f"{dst} exists: convert never overwrites a file")
+    dst = _out_file(dst, force)
     try:
         data = torch.load(src, map_location="cpu", weights_only=False)
     except Exception as err:
         raise CheckpointError(f"checkpoint {src} is unreadable: {err}") from err
-    if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
-        raise CheckpointError(f"{src} is not a lasmp checkpoint (no format '{CHECKPOINT_FORMAT}')")
+    _check_format(data, src)
     run = (data.get("env_state") or {}).get("run")
-    if run is not None:
-        run.update(format=PLAIN_RUN_STATE_FORMAT, sim=pack(run["sim"]), attrs=pack(run["attrs"]))
+    if run is not None and run.get("format") != PLAIN_RUN_STATE_FORMAT:  # plain already: kept as it is
+        try:
+            run.update(format=PLAIN_RUN_STATE_FORMAT, sim=pack(run["sim"]), attrs=pack(run["attrs"]))
+        except (PlainStateError, KeyError, TypeError) as err:
+            raise CheckpointError(f"checkpoint {src}: its running state cannot be converted: {err}") from None
     data.pop("path", None)
     atomic_torch_save(data, dst)
     read_checkpoint(dst)  # the result must load safely
     return dst
 
 
+def _out_file(dst: str | Path, force: bool) -> Path:
+    """`dst` as a checkpoint file the tool may write (lasmp.inputs.check_out_file), as CheckpointError."""
+    try:
+        return check_out_file(dst, suffixes=CHECKPOINT_SUFFIXES, force=force, option="OUT")
+    except InputError as err:
+        raise CheckpointError(str(err)) from None
+
+
 def atomic_torch_save(obj, path: str | Path) -> None:
+    """torch.save to `path` atomically; a full disk is an AtomicWriteError naming `path` (lasmp.atomic
+    finds the OSError behind torch's RuntimeError)."""
     with atomic_open(path) as f:
         torch.save(obj, f)
 
@@ -172,11 +281,10 @@ def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False) -> 
     """Write the policy checkpoint of `src` (a checkpoint or run directory) to `dst`: everything but
     the optimizers' states and the envs' running state (networks with their normalizers, config,
     layout, the task's env state such as the curriculum). An existing `dst` (`src` itself included)
-    is overwritten only with `force`."""
-    data = read_checkpoint(src)
-    dst = Path(dst)
-    if dst.exists() and not force:
-        if dst.resolve() == Path(data["path"]).resolve():
+    is overwritten only with `force`; `dst` is checked before `src` is read."""
+    src, dst = checkpoint_file(src), Path(dst)
+    if dst.exists() and not dst.is_dir() and not force:
+        if dst.resolve() == src.resolve():
             what = (
                 "is the checkpoint it is made from: writing over it would drop its optimizers' states "
                 "and running state, so that the run could no longer be resumed"
@@ -184,6 +292,8 @@ def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False) -> 
         else:
             what = f"exists ({_kind_of(dst)})"
         raise CheckpointError(f"{dst} {what}: give another OUT, or --force to overwrite it")
+    _out_file(dst, force)
+    data = read_checkpoint(src)
     slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
     slim["env_state"] = {
         k: v for k, v in (data.get("env_state") or {}).items() if k != "run"
@@ -302,7 +412,9 @@ def set_rng_state(state: dict, env_rng: np.random.Generator) -> None:
 def main(argv=None) -> int:
     """`python -m lasmp.algo.checkpoint policy SRC DST [--force]`: write the policy checkpoint of SRC to
     DST (an existing DST only with --force);
-    `python -m lasmp.algo.checkpoint info PATH`: what a checkpoint holds."""
+    `python -m lasmp.algo.checkpoint info PATH`: what a checkpoint holds;
+    `python -m lasmp.algo.checkpoint convert --trust SRC DST [--force]`: an older checkpoint rewritten.
+    DST must end in .pt (or .pth); it is checked before SRC is read."""
     import argparse
     import sys
 
@@ -322,6 +434,7 @@ def main(argv=None) -> int:
     conv.add_argument("src")
     conv.add_argument("dst")
     conv.add_argument("--trust", action="store_true", help="required: I trust SRC (it will be unpickled)")
+    conv.add_argument("--force", action="store_true", help="overwrite DST if it exists")
     args = p.parse_args(argv)
     try:
         if args.cmd == "policy":
@@ -335,11 +448,11 @@ def main(argv=None) -> int:
                     file=sys.stderr,
                 )
                 return 2
-            out = convert_trusted(args.src, args.dst)
+            out = convert_trusted(args.src, args.dst, force=args.force)
             print(f"wrote {out}: it loads without unpickling")
         else:
             data = read_checkpoint(args.path)
-            cfg = data["config"]
+            cfg = data["config"] if isinstance(data["config"], dict) else {}
             print(
                 f"{data['path']}: iteration {data['iter']}, task {cfg.get('task')}, policy "
                 f"{cfg.get('policy', {}).get('name')}, {'policy checkpoint' if is_policy_only(data) else 'full'}, "

@@ -6,6 +6,9 @@ gradients averaged every mini-batch, the adaptive learning rate taken from rank 
 normalizers' statistics all-reduced. What rsl_rl does not cover, lasmp adds: the ROA pass's
 gradients (`PPOROA.update_roa`), one shared curriculum (`SharedCurriculum`), every rank's envs'
 running state in rank 0's checkpoints, and one stop iteration for a signal sent to any rank.
+A rank that loses the others (one killed or crashed: gloo's "Connection closed by peer") ends with
+one message naming the run's newest checkpoint and the command that resumes from it
+(`lasmp.train.RankLost`), not with the collective's traceback.
 
 Backends: NCCL for a learner on CUDA (`device=cuda` means each rank's `cuda:LOCAL_RANK`), gloo on a
 CPU. rsl_rl's own setup hard-codes NCCL and CUDA; `LasmpRunner` replaces it with `setup`.
@@ -100,6 +103,36 @@ def scatter_from_main(objs):
     out = [None]
     dist.scatter_object_list(out, objs if dist.get_rank() == 0 else None, src=0)
     return out[0]
+
+
+def broadcast_from_main(obj):
+    """Rank 0's `obj` on every rank (pickled between this job's own processes)."""
+    out = [obj]
+    dist.broadcast_object_list(out, src=0)
+    return out[0]
+
+
+def local_world_size() -> int:
+    """How many of the job's processes run on this machine (torchrun's LOCAL_WORLD_SIZE; 1 alone)."""
+    try:
+        return max(int(os.getenv("LOCAL_WORLD_SIZE", "1")), 1)
+    except ValueError:
+        return 1
+
+
+# how gloo and NCCL word a peer that went away (torch.distributed raises them as RuntimeError or its
+# DistBackendError subclass)
+PEER_LOST = (
+    "Connection closed by peer",
+    "Connection reset by peer",
+    "Broken pipe",
+    "NCCL communicator was aborted",
+)
+
+
+def is_peer_lost(err: BaseException) -> bool:
+    """True when a collective failed because another rank of the job is gone (killed, crashed)."""
+    return isinstance(err, RuntimeError) and any(words in str(err) for words in PEER_LOST)
 
 
 def teardown() -> None:

@@ -30,6 +30,9 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
+import torch
+
 from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import (
     CHECKPOINT_FORMAT,
@@ -49,6 +52,25 @@ from lasmp.algo.console import OneLineLogger, network_line, without_network_prin
 from lasmp.algo.rsl_compat import OnPolicyRunnerCompat
 
 INTERRUPT_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def _array_bytes(obj, seen: set[int] | None = None) -> int:
+    """The bytes of the tensors and numpy arrays in a nested structure of dicts, lists and tuples;
+    a tensor storage shared by several entries counts once, as torch.save writes it once."""
+    seen = set() if seen is None else seen
+    if isinstance(obj, torch.Tensor):
+        storage = obj.untyped_storage()
+        if storage.data_ptr() in seen:
+            return 0
+        seen.add(storage.data_ptr())
+        return storage.nbytes()
+    if isinstance(obj, np.ndarray):
+        return obj.nbytes
+    if isinstance(obj, dict):
+        return sum(_array_bytes(v, seen) for v in obj.values())
+    if isinstance(obj, (list, tuple)):
+        return sum(_array_bytes(v, seen) for v in obj)
+    return 0
 
 
 class TrainingInterrupted(Exception):
@@ -238,8 +260,27 @@ class LasmpRunner(OnPolicyRunnerCompat):
 
     # -- checkpoints -------------------------------------------------------------------------------
     def save(self, path: str, infos: dict | None = None) -> None:
+        """Write the checkpoint to `path` (atomically); any failure of the write is an AtomicWriteError
+        naming `path` (`atomic_torch_save`)."""
+        atomic_torch_save(self.checkpoint_data(infos, path), path)
+        run_dir = self.logger.log_dir
+        if run_dir is not None and Path(path).parent.resolve() == Path(run_dir).resolve():
+            self._keep_newest_full(run_dir)
+
+    def checkpoint_size(self) -> int:
+        """A lower bound of the bytes of a checkpoint of this run: the arrays it would hold now
+        (tensors, each storage once, and numpy arrays: almost all of the file). Before the
+        optimizers' first step their moments do not exist yet, so the first checkpoint's file is
+        larger (by up to two copies of the trained parameters). Counted, not serialized: cheap, and
+        independent of the writer."""
+        return _array_bytes(self.checkpoint_data(None, None))
+
+    def checkpoint_data(self, infos: dict | None, path: str | None) -> dict:
+        """What a checkpoint holds; a non-finite network or optimizer state is refused (FloatingPointError
+        naming `path`, where given), so that the last good checkpoint stays."""
         data = self.alg.save()
-        check_finite(data, f"refusing to save {path}")
+        if path is not None:
+            check_finite(data, f"refusing to save {path}")
         data.update(
             format=CHECKPOINT_FORMAT,
             iter=self.current_learning_iteration,
@@ -254,10 +295,7 @@ class LasmpRunner(OnPolicyRunnerCompat):
         if self.is_distributed:  # every rank's envs, so that a resume of the job continues each of them
             data["other_ranks"] = self._other_ranks
             data["world_size"] = self.gpu_world_size
-        atomic_torch_save(data, path)
-        run_dir = self.logger.log_dir
-        if run_dir is not None and Path(path).parent.resolve() == Path(run_dir).resolve():
-            self._keep_newest_full(run_dir)
+        return data
 
     def _keep_newest_full(self, run_dir: str) -> None:
         """The newest `keep_full` full checkpoints of the run stay; older ones become policy

@@ -35,9 +35,13 @@ File (``.npz``, :func:`save` / :func:`load`), bit-for-bit reproducible
     The default set (seed 0, 10,000 x 1,024) is 9,939,608 bytes (~9.9 MB,
     sha256 0e049d82...) and takes a few seconds to generate, statistics included (one CPU).
 
+Checked on load (:func:`load`), besides its structure: every robot value lies in Table B's testing
+range, and every array is what the recorded seed and sizes generate (``_check_regenerates`` says
+why), so an edited file (Kp and Kd swapped, rows reordered) is refused instead of evaluated.
+
 Make it::
 
-    python -m lasmp.eval.benchmark generate            # -> benchmarks/xi_eval.npz, seed 0
+    python -m lasmp.eval.benchmark generate            # -> benchmarks/xi_eval.npz, seed 0 (--force to replace)
     python -m lasmp.eval.benchmark info benchmarks/xi_eval.npz [--json]
 """
 
@@ -58,6 +62,7 @@ from lasmp.atomic import atomic_open
 from lasmp.config import DomainRandCfg
 from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, sample_intrinsics
+from lasmp.inputs import InputError, check_out_file, check_seed, int_arg, seed_arg
 
 FORMAT_NAME = "lasmp-benchmark"
 FORMAT_VERSION = 2  # 2: approximating B-splines, the construction recorded (spline, spline_degree)
@@ -77,17 +82,20 @@ ROBOT_FIELDS = {
 }
 
 
-# robot array key -> its physical range [low, high] (the bounds DomainRandRanges.validate allows any
-# randomization range to take): a value outside (a negative mass or friction) would give NaN metrics
-ROBOT_RANGES = {
-    "robot_trunk_mass_kg": (0.5, 50.0),
-    "robot_com_shift_m": (-0.5, 0.5),
-    "robot_foot_friction": (0.0, 5.0),
-    "robot_joint_kp": (0.0, 500.0),
-    "robot_joint_kd": (0.0, 50.0),
-    "robot_platform_kp_factor": (0.0, 100.0),
-    "robot_platform_kd_factor": (0.0, 100.0),
+# robots: Table B's testing ranges (DomainRandCfg().test), which every robot of Xi_eval is drawn from;
+# a value outside is a file that is not Xi_eval (e.g. Kp and Kd swapped, every stiffness 0, no
+# platform drive), which would evaluate without a word and give meaningless metrics
+ROBOT_UNITS = {
+    "robot_trunk_mass_kg": "kg",
+    "robot_com_shift_m": "m",
+    "robot_foot_friction": "",
+    "robot_joint_kp": "N m/rad",
+    "robot_joint_kd": "N m s/rad",
+    "robot_platform_kp_factor": "(factor)",
+    "robot_platform_kd_factor": "(factor)",
 }
+MAX_TRAJECTORIES = 100_000  # 10x the paper's set; more would take gigabytes (generate's bound)
+MAX_ROBOTS = 100_000
 
 
 class BenchmarkFileError(ValueError):
@@ -184,6 +192,8 @@ def save(path, bench: Benchmark) -> None:
 def load(path) -> Benchmark:
     """Read and validate a benchmark file; any problem raises BenchmarkFileError naming it."""
     path = os.fspath(path)
+    if os.path.exists(path) and not os.path.isfile(path):  # a FIFO would block, /dev/zero never end
+        raise BenchmarkFileError(f"{path}: not a regular file; give a benchmark file (.npz)")
     if not os.path.isfile(path):
         raise BenchmarkFileError(f"{path}: no such benchmark file")
     if not zipfile.is_zipfile(path):
@@ -206,6 +216,7 @@ def load(path) -> Benchmark:
     traj = T.waypoints_from_arrays(get, path, BenchmarkFileError)
 
     robots, r = {}, None
+    test = DomainRandCfg().test
     for key, (name, shape) in ROBOT_FIELDS.items():
         a = get(key)
         r = a.shape[0] if r is None and a.ndim >= 1 else r
@@ -216,16 +227,64 @@ def load(path) -> Benchmark:
             )
         if not np.all(np.isfinite(a)):
             raise BenchmarkFileError(f"{path}: non-finite values (NaN/inf) in {key!r}")
-        low, high = ROBOT_RANGES[key]
+        low, high = getattr(test, name)
         outside = (a < low) | (a > high)
         if np.any(outside):
             row = int(np.flatnonzero(outside.reshape(r, -1).any(axis=1))[0])
             raise BenchmarkFileError(
-                f"{path}: {key!r} of robot {row} is {a[row].tolist()}, outside its physical range "
-                f"[{low:g}, {high:g}]"
+                f"{path}: {key!r} of robot {row} is {np.round(a[row], 4).tolist()}, outside the testing "
+                f"range [{low:g}, {high:g}] {ROBOT_UNITS[key]} of Table B that every robot of Xi_eval is "
+                f"drawn from{_swapped(key, a, test)}. Regenerate the file with `python -m "
+                "lasmp.eval.benchmark generate`"
             )
         robots[name] = a.astype(np.float64)
-    return Benchmark(traj, Intrinsics(**robots), int(get("seed")))
+    try:
+        seed = check_seed(get("seed").item(), "its seed")
+    except InputError as err:
+        raise BenchmarkFileError(f"{path}: {err}") from None
+    _check_regenerates(path, get, seed, len(traj), r)
+    return Benchmark(traj, Intrinsics(**robots), seed)
+
+
+def _swapped(key: str, a: np.ndarray, test) -> str:
+    """A hint where joint stiffness and damping look exchanged."""
+    other = {"robot_joint_kp": test.joint_kd, "robot_joint_kd": test.joint_kp}.get(key)
+    if other is not None and np.all((a >= other[0]) & (a <= other[1])):
+        return " (are Kp and Kd swapped?)"
+    return ""
+
+
+def _check_regenerates(path, get, seed: int, num_trajectories: int, num_robots: int) -> None:
+    """Refuse a file whose arrays are not what its seed and sizes generate (`generate`).
+
+    Why a regeneration and not only ranges: values inside the ranges can still be wrong (one array's
+    rows reordered pairs each robot with another mass; an edited waypoint), and only the generator
+    knows which value belongs to which row. A checksum stored in the file would change the bytes of
+    the published Xi_eval (its sha256 is recorded with every result), and an edit can recompute
+    one; the seed and sizes every file already records regenerate it bit for bit (the file is
+    reproducible by design) in about 0.25 s for 10,000 x 1,024. A benchmark is therefore always the
+    set its seed draws, so every method meets the same robots and motions."""
+    want = _arrays(generate(num_trajectories, num_robots, seed))
+    for key, expected in want.items():
+        have = get(key)
+        same = (
+            have.shape == expected.shape and np.array_equal(have, expected, equal_nan=True)
+            if expected.dtype.kind == "f"
+            else have.shape == expected.shape and np.array_equal(have, expected)
+        )
+        if not same:
+            where = ""
+            if have.shape == expected.shape and have.ndim >= 1:
+                differs = ~((have == expected) | (np.isnan(have) & np.isnan(expected)))
+                row = int(np.flatnonzero(differs.reshape(len(have), -1).any(axis=1))[0])
+                where = f", first in row {row}"
+            raise BenchmarkFileError(
+                f"{path}: {key!r} differs from what its seed {seed} draws ({num_trajectories} trajectories, "
+                f"{num_robots} robots){where}: the file was edited or its rows reordered, so methods "
+                "evaluated on it would not meet Xi_eval's robots and motions. Regenerate it: python -m "
+                f"lasmp.eval.benchmark generate --seed {seed} --num-trajectories {num_trajectories} "
+                f"--num-robots {num_robots} --out {path} --force"
+            )
 
 
 def sha256(path) -> str:
@@ -261,32 +320,37 @@ def _report(info: dict, as_json: bool) -> None:
 
 
 def main(argv=None) -> int:
+    """The CLI (module docstring). `generate` checks --out (extension, an existing file only with
+    --force, a writable directory) before drawing anything; a user's error or a failed write is one
+    line `error: ...` and exit code 2."""
     ap = argparse.ArgumentParser(prog="python -m lasmp.eval.benchmark", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
     pg = sub.add_parser("generate", help="draw Xi_eval and write it")
-    pg.add_argument("--out", default=DEFAULT_PATH)
-    pg.add_argument("--seed", type=int, default=0)
-    pg.add_argument("--num-trajectories", type=int, default=DEFAULT_NUM_TRAJECTORIES)
-    pg.add_argument("--num-robots", type=int, default=DEFAULT_NUM_ROBOTS)
+    pg.add_argument("--out", default=DEFAULT_PATH, help=f"a .npz file (default {DEFAULT_PATH})")
+    pg.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    pg.add_argument("--seed", type=seed_arg, default=0, help="in [0, 2**32 - 1]")
+    pg.add_argument("--num-trajectories", type=int_arg(1, MAX_TRAJECTORIES), default=DEFAULT_NUM_TRAJECTORIES)
+    pg.add_argument("--num-robots", type=int_arg(1, MAX_ROBOTS), default=DEFAULT_NUM_ROBOTS)
     pg.add_argument("--json", action="store_true", help="print one JSON object only")
     pi = sub.add_parser("info", help="statistics and sha256 of an existing file")
     pi.add_argument("file")
     pi.add_argument("--json", action="store_true", help="print one JSON object only")
     args = ap.parse_args(argv)
-    if args.cmd == "generate":
-        if args.num_trajectories < 1 or args.num_robots < 1:
-            ap.error("--num-trajectories and --num-robots must be >= 1")
-        bench = generate(args.num_trajectories, args.num_robots, args.seed)
-        save(args.out, bench)
-        path = args.out
-    else:
-        path = args.file
-        try:
+    try:
+        if args.cmd == "generate":
+            path = check_out_file(args.out, suffixes=(".npz",), force=args.force, option="--out")
+            bench = generate(args.num_trajectories, args.num_robots, args.seed)
+            save(path, bench)
+        else:
+            path = args.file
             bench = load(path)
-        except BenchmarkFileError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-    _report(describe(path, bench), args.json)
+    except (BenchmarkFileError, InputError, OSError) as exc:  # OSError: a full disk (AtomicWriteError)
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        _report(describe(path, bench), args.json)
+    except BrokenPipeError:  # piped into `head`, which has read enough: no traceback
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 

@@ -1,6 +1,6 @@
 """Where a method fails: the collision rate of an evaluation broken down by episode, from its record.
 
-    python -m lasmp.eval.breakdown DIR [--plot out.png] [--late-s 8] [--episodes K] [--row LABEL]
+    python -m lasmp.eval.breakdown DIR [--plot out.png [--force]] [--late-s 8] [--episodes K] [--row LABEL]
 
 Reads DIR/episodes.csv.gz (written by evaluate.py; DIR/episodes.csv in evaluations made before it
 compressed them) and prints, as Markdown tables, the collision rate (with the episode count behind
@@ -10,7 +10,9 @@ Coulomb block, lasmp.eval.episodes), the failures by cause (the first body that 
 and the share of failures that come after --late-s seconds (8 by default: the platform is often
 still converging to its last waypoint when the episode ends). `--plot` draws the first three
 breakdowns and the failure times (matplotlib; without it the plot is skipped
-with a note). The tilt and forced tables need the probe's columns; without them they say so.
+with a note); it does not replace an existing file without `--force`. A record with an episode in
+two rows is refused (each figure counts an episode once). The tilt and forced tables need the
+probe's columns; without them they say so.
 `--episodes K` keeps Xi_eval's first K episodes (episode < K), so that an evaluation of all 10,000
 compares with one of the first K (episode k is the same trajectory and robot in both).
 `--probe-from DIR2` takes the probe's columns from another evaluation of the same episodes (one run
@@ -30,7 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
+from lasmp.atomic import AtomicWriteError
 from lasmp.eval.episodes import PROBE_COLUMNS, EpisodesFileError, episodes_path, read_csv
+from lasmp.inputs import InputError, check_out_file, float_arg, int_arg
 
 TILT_BINS_RAD = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)  # the last bin is [0.7, inf)
 FRICTION_BINS = (0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3)  # the testing range, U(0.7, 1.3)
@@ -230,6 +234,14 @@ def plot(t: dict[str, np.ndarray], b: dict, path: Path) -> bool:
     return True
 
 
+def _naming(path: Path, fn, *args):
+    """fn(*args), its EpisodesFileError prefixed with the file it is about."""
+    try:
+        return fn(*args)
+    except EpisodesFileError as err:
+        raise EpisodesFileError(f"{path}: {err}") from None
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m lasmp.eval.breakdown",
@@ -240,22 +252,29 @@ def main(argv=None) -> int:
         "dir", type=Path, help="an evaluation directory (evaluate.py --out), with episodes.csv.gz or .csv"
     )
     p.add_argument("--plot", type=Path, help="also draw the breakdown to this PNG")
-    p.add_argument("--late-s", type=float, default=8.0, help="failures after this time count as late (s)")
-    p.add_argument("--episodes", type=int, metavar="K", help="only Xi_eval's first K episodes (episode < K)")
+    p.add_argument("--force", action="store_true", help="with --plot: overwrite an existing file")
+    p.add_argument(
+        "--late-s", type=float_arg(0.0), default=8.0, help="failures after this time count as late (s, >= 0)"
+    )
+    p.add_argument(
+        "--episodes", type=int_arg(1), metavar="K", help="only Xi_eval's first K episodes (episode < K)"
+    )
     p.add_argument("--probe-from", type=Path, metavar="DIR2", help="the probe's columns from DIR2's episodes")
     p.add_argument(
         "--row", metavar="LABEL", help="print only docs/evaluation.md's row of this run, named LABEL"
     )
     args = p.parse_args(argv)
-    if args.episodes is not None and args.episodes < 1:
-        p.error(f"--episodes must be >= 1, got {args.episodes}")
     try:
-        table = read_csv(episodes_path(args.dir))
+        if args.plot is not None:  # before the reading: a refused plot costs nothing
+            check_out_file(args.plot, suffixes=(".png",), force=args.force, option="--plot")
+        path = episodes_path(args.dir)
+        table = read_csv(path)
         if args.episodes is not None:
-            table = first_episodes(table, args.episodes)
+            table = _naming(path, first_episodes, table, args.episodes)
         if args.probe_from is not None:
-            table = with_probe_from(table, read_csv(episodes_path(args.probe_from)))
-    except EpisodesFileError as err:
+            other = episodes_path(args.probe_from)
+            table = _naming(other, with_probe_from, table, read_csv(other))
+    except (EpisodesFileError, InputError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     b = breakdown(table, args.late_s)
@@ -267,8 +286,12 @@ def main(argv=None) -> int:
             return 2
     else:
         print(markdown(b))
-    if args.plot is not None and not plot(table, b, args.plot):
-        print("\n(no plot: matplotlib is not installed)", file=sys.stderr)
+    try:
+        if args.plot is not None and not plot(table, b, args.plot):
+            print("\n(no plot: matplotlib is not installed)", file=sys.stderr)
+    except AtomicWriteError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
     return 0
 
 

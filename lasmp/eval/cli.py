@@ -11,15 +11,20 @@
              --torch-threads 1 (the policy's CPU threads) --no-platform-probe
     suite options: --robots-per-scenario R (default 64) --platform-drive close|paper --scenarios NAME ...
 
-Writes DIR/metrics.json (strict JSON: a missing value is null), DIR/metrics.md and DIR/episodes.csv.gz
-(gzip-compressed CSV, one row per episode: lasmp/eval/episodes.py; `python -m lasmp.eval.breakdown DIR`
-reads it; the suite's has one row per scenario and robot, with its initial heading:
-lasmp/eval/real_motion/suite.py), prints metrics.md and, last, one line naming DIR and the files
-written there. Definitions: lasmp/eval/metrics.py and docs/evaluation.md.
+Writes DIR/metrics.json (strict JSON: a missing value is null; it records the seed and the SHA-256
+of the benchmark and checkpoint files), DIR/metrics.md and DIR/episodes.csv.gz (gzip-compressed CSV,
+one row per episode: lasmp/eval/episodes.py; `python -m lasmp.eval.breakdown DIR` reads it; the
+suite's has one row per scenario and robot, with its initial heading: lasmp/eval/real_motion/suite.py),
+prints metrics.md and, last, one line naming DIR and the files written there. Definitions:
+lasmp/eval/metrics.py and docs/evaluation.md.
 
-The default DIR is eval/<controller> for Stand Still, else eval/<run directory>/<checkpoint stem>
-(plus _rs or _rs_oracle), so checkpoints of two runs never share one. A DIR that already holds a
-metrics.json is refused unless --force; an unwritable DIR fails before any episode is played.
+The default DIR is eval/<controller> for Stand Still, else eval/<run directory>-<hash>/<checkpoint
+stem> (plus _rs or _rs_oracle; the hash is of the run directory's full path), so no two checkpoint
+files share one. DIR is claimed before any episode is played and the result put in place whole, as
+one unit (lasmp/eval/outdir.py): a DIR with a metrics.json is refused unless --force, one that another
+evaluation writes is refused, and an unwritable one fails at once. On a disk that fills meanwhile,
+the metrics are printed all the same, with one line naming the file (exit 1); Ctrl-C says in one
+line what was written (exit 130).
 The platform probe (for episodes.csv.gz's feasibility columns) replays every episode's platform
 motion in full, a second pass about as long as a Stand Still evaluation; --no-platform-probe
 leaves those columns empty.
@@ -39,18 +44,18 @@ from lasmp.deploy import load_policy
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
 from lasmp.eval import episodes as ep
+from lasmp.eval import outdir as od
 from lasmp.eval import platform_probe as pp
 from lasmp.eval.gait import summarize_gait
 from lasmp.eval.metrics import ALL_METRICS, metric_h_des_p_m, summarize
 from lasmp.eval.mirror import MirroredBenchmark, mirror_report
-from lasmp.eval.outdir import OutDirError, default_out_dir, prepare_out_dir, where_written
 from lasmp.eval.paper import paper_key, paper_row
-from lasmp.eval.report import plot_estimates, write_results
+from lasmp.eval.report import markdown, plot_estimates
 from lasmp.eval.run import run_benchmark
+from lasmp.inputs import int_arg, seed_arg
 
 DEFAULT_BENCHMARK = Path("benchmarks") / "xi_eval.npz"
 NUM_BATCHES = 10
-ESTIMATES_PLOT = "estimates.png"
 
 
 def eval_env_overrides(num_envs: int, seed: int, extra: dict | None = None) -> dict:
@@ -89,8 +94,10 @@ def load_or_make_benchmark(path: Path):
     return bench
 
 
-def build(args, extra_env: dict | None = None):
-    """(env, controller, policy with estimators or None, method name); `extra_env`: env overrides."""
+def build(args, extra_env: dict | None = None, checkpoint: Path | None = None):
+    """(env, controller, policy with estimators or None, method name); `extra_env`: env overrides;
+    `checkpoint`: the file --checkpoint names (a run directory's latest, resolved once by the caller,
+    so the file loaded is the file hashed)."""
     from lasmp.config import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
@@ -101,7 +108,7 @@ def build(args, extra_env: dict | None = None):
         env = MovingPlatformEnv(build_env_cfg(overrides, schema=MovingPlatformCfg))
         zeros = torch.zeros(n, env.num_actions)
         return env, (lambda obs: zeros), None, "stand_still"
-    deployed = load_policy(args.checkpoint, seed=args.seed)
+    deployed = load_policy(checkpoint or args.checkpoint, seed=args.seed)
     policy, cfg = deployed.policy, deployed.cfg
     if args.controller in ("rs", "rs_oracle"):
         if cfg.task != "rough_static" or not policy.command_input:
@@ -156,9 +163,7 @@ def _asdict(cfg) -> dict:
     return OmegaConf.to_container(OmegaConf.structured(cfg))
 
 
-def main(argv=None, motions=None) -> int:
-    """`motions` (with --suite, from code): Motion objects to play instead of the suite's named
-    scenarios, as scripts/level_acceleration_probe.py does."""
+def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument(
         "--checkpoint", help="a checkpoint file or run directory (LAS-MP, or R-S for rs/rs_oracle)"
@@ -170,13 +175,15 @@ def main(argv=None, motions=None) -> int:
     )
     p.add_argument("--benchmark", type=Path, default=DEFAULT_BENCHMARK)
     p.add_argument("--trajectories", type=Path, help="a trajectory file to play instead of the benchmark's")
-    p.add_argument("--num-trajectories", type=int, default=None, help="the first K episodes (default: all)")
-    p.add_argument("--batch-envs", type=int, default=1024)
+    p.add_argument(
+        "--num-trajectories", type=int_arg(1), default=None, help="the first K episodes (default: all)"
+    )
+    p.add_argument("--batch-envs", type=int_arg(1), default=1024)
     p.add_argument(
         "--out",
         type=Path,
         default=None,
-        help="default: eval/stand_still, or eval/<run directory>/<checkpoint stem>[_rs|_rs_oracle]",
+        help="default: eval/stand_still, or eval/<run directory>-<hash>/<checkpoint stem>[_rs|_rs_oracle]",
     )
     p.add_argument("--force", action="store_true", help="overwrite a result already in --out")
     p.add_argument(
@@ -187,10 +194,12 @@ def main(argv=None, motions=None) -> int:
     p.add_argument(
         "--plot-estimates", action="store_true", help="estimated vs true x_exp over episode 0 (PNG)"
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--seed", type=seed_arg, default=0, help="the envs' and the policy's seed, in [0, 2**32-1]"
+    )
     p.add_argument(
         "--mirror",
-        type=int,
+        type=int_arg(1),
         default=None,
         metavar="K",
         help="also play the mirror twins of the first K episodes and compare the failures (lasmp/eval/mirror.py)",
@@ -199,7 +208,7 @@ def main(argv=None, motions=None) -> int:
     p.add_argument("--scenarios", nargs="+", help="with --suite: only these scenarios (default: all)")
     p.add_argument(
         "--robots-per-scenario",
-        type=int,
+        type=int_arg(1),
         default=None,
         help="with --suite: the benchmark's first R robots play every scenario (default 64)",
     )
@@ -212,23 +221,40 @@ def main(argv=None, motions=None) -> int:
     )
     p.add_argument(
         "--torch-threads",
-        type=int,
+        type=int_arg(1),
         default=1,
         help="torch's CPU threads for the policy (default 1: its per-step networks are small, and more "
         "threads contend with the physics thread pool, on a shared machine badly)",
     )
+    return p
+
+
+def main(argv=None, motions=None) -> int:
+    """`motions` (with --suite, from code): Motion objects to play instead of the suite's named
+    scenarios, as scripts/level_acceleration_probe.py does. Ctrl-C ends it with one line saying what
+    was written (exit 130)."""
+    p = parser()
     args = p.parse_args(argv)
-    if args.torch_threads < 1:
-        p.error(f"--torch-threads must be >= 1, got {args.torch_threads}")
     torch.set_num_threads(args.torch_threads)
     if args.controller == "stand_still" and args.checkpoint:
         p.error("--controller stand_still takes no --checkpoint")
     if args.controller != "stand_still" and not args.checkpoint:
         p.error("give --checkpoint PATH (a LAS-MP policy, or an R-S policy with --controller rs|rs_oracle)")
-    if args.batch_envs < 1:
-        p.error(f"--batch-envs must be >= 1, got {args.batch_envs}")
-    if args.suite:
-        return run_suite(args, p, motions)
+    claimed: list[od.ResultDir] = []
+    try:
+        if args.suite:
+            return run_suite(args, p, motions, claimed)
+        return run_xi(args, p, motions, claimed)
+    except KeyboardInterrupt:
+        print(od.interrupted(claimed[0] if claimed else None), file=sys.stderr)
+        return 130
+
+
+INPUT_ERRORS = (CheckpointError, od.OutDirError, bm.BenchmarkFileError, trj.TrajectoryFileError)
+
+
+def run_xi(args, p, motions, claimed: list) -> int:
+    """The benchmark Xi_eval (or --trajectories with its robots)."""
     if motions is not None:
         p.error("motions need --suite")
     for flag, value in (
@@ -241,42 +267,57 @@ def main(argv=None, motions=None) -> int:
     if args.plot_estimates and args.controller is not None:
         p.error("--plot-estimates needs --checkpoint (a policy with estimators)")
     try:
-        bench = load_or_make_benchmark(args.benchmark)
-        if args.trajectories is not None:
-            bench = dataclasses.replace(bench, trajectories=trj.load(args.trajectories))
-        total = len(bench.trajectories)
-        args.num_trajectories = total if args.num_trajectories is None else args.num_trajectories
-        if not 1 <= args.num_trajectories <= total:
-            p.error(f"--num-trajectories must be in [1, {total}], got {args.num_trajectories}")
-        if args.mirror is not None and not 1 <= args.mirror <= args.num_trajectories:
-            p.error(
-                f"--mirror must be in [1, {args.num_trajectories}] (the episodes played), got {args.mirror}"
-            )
-        # the output before the policy and the physics: a refusal costs seconds, not an evaluation
-        out_dir = prepare_out_dir(args.out or default_out_dir(args), args.force)
-        env, controller, policy, method = build(args)
-    except (CheckpointError, OutDirError, bm.BenchmarkFileError, trj.TrajectoryFileError) as err:
+        # the output before the benchmark, the policy and the physics: a refusal costs seconds
+        out = od.claim_out(args, Path("eval"), claimed)
+    except INPUT_ERRORS as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    with out:
+        try:
+            bench = load_or_make_benchmark(args.benchmark)
+            if args.trajectories is not None:
+                bench = dataclasses.replace(bench, trajectories=trj.load(args.trajectories))
+            total = len(bench.trajectories)
+            if args.num_trajectories is None:
+                args.num_trajectories = total
+            if not 1 <= args.num_trajectories <= total:
+                p.error(f"--num-trajectories must be in [1, {total}], got {args.num_trajectories}")
+            if args.mirror is not None and args.mirror > args.num_trajectories:
+                p.error(
+                    f"--mirror must be in [1, {args.num_trajectories}] (the episodes played), got {args.mirror}"
+                )
+            out.check_space(args.num_trajectories + (args.mirror or 0))
+            checkpoint = od.checkpoint_file(args.checkpoint)
+            env, controller, policy, method = build(args, checkpoint=checkpoint)
+            inputs = od.provenance(args, checkpoint, args.benchmark)
+        except INPUT_ERRORS as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
+        return evaluate_xi(args, out, bench, env, controller, policy, method, inputs)
+
+
+def evaluate_xi(args, out: od.ResultDir, bench, env, controller, policy, method: str, inputs: dict) -> int:
     run = run_benchmark(
         env, controller, bench, args.num_trajectories, policy=policy, trace=args.plot_estimates
     )
     episodes = run["episodes"]
-    written = [ep.EPISODES_FILE]
+    writers = []
     mirror = None
     if args.mirror is not None:
         twins = MirroredBenchmark(bench, env.nominal_com_y_m, env.cfg.init_state)
         mirrored = run_benchmark(env, controller, twins, args.mirror)["episodes"]
-        ep.write_csv(out_dir / ep.MIRROR_EPISODES_FILE, ep.episode_table(twins, mirrored, None))
-        written.append(ep.MIRROR_EPISODES_FILE)
+        mirror_table = ep.episode_table(twins, mirrored, None)
+        writers.append((ep.MIRROR_EPISODES_FILE, lambda path: ep.write_csv(path, mirror_table)))
         mirror = mirror_report(episodes, mirrored)
     probe = None
     if not args.no_platform_probe:
         probe = pp.probe_platform(env.cfg, bench, args.num_trajectories, env.num_envs)
-    ep.write_csv(out_dir / ep.EPISODES_FILE, ep.episode_table(bench, episodes, probe))
+    table = ep.episode_table(bench, episodes, probe)
+    writers.insert(0, (ep.EPISODES_FILE, lambda path: ep.write_csv(path, table)))
     result = {
         "method": method,
         "benchmark": str(args.trajectories or args.benchmark),
+        **inputs,
         "num_episodes": args.num_trajectories,
         "std_over": f"{min(NUM_BATCHES, args.num_trajectories)} consecutive equal batches of episodes",
         "metrics": summarize(episodes, NUM_BATCHES, ALL_METRICS),
@@ -293,18 +334,16 @@ def main(argv=None, motions=None) -> int:
     paper = paper_row(paper_key(args.controller, method))
     if paper is not None:
         result["paper"] = paper
-    written = [*write_results(out_dir, result), *written]
     if args.plot_estimates and run.get("trace") is not None and len(policy.estimation_names):
-        plot_estimates(run["trace"], policy.estimation_names, env.dt_s, out_dir / ESTIMATES_PLOT)
-        written.append(ESTIMATES_PLOT)
-        result["estimates_plot_episode"] = run["trace"]["episode"]
-        write_results(out_dir, result)
-    print((out_dir / "metrics.md").read_text())
-    print(where_written(out_dir, written))
-    return 0
+        trace = run["trace"]
+        writers.append(
+            (od.ESTIMATES_PLOT, lambda path: plot_estimates(trace, policy.estimation_names, env.dt_s, path))
+        )
+        result["estimates_plot_episode"] = trace["episode"]
+    return od.publish(out, markdown(result), [*od.result_writers(result, markdown), *writers])
 
 
-def run_suite(args, p, motions=None) -> int:
+def run_suite(args, p, motions, claimed: list) -> int:
     """`--suite real_motion`: every scenario (or `motions`) with the benchmark's first R robots
     (lasmp.eval.real_motion)."""
     from lasmp.eval.real_motion import suite as rm
@@ -314,53 +353,42 @@ def run_suite(args, p, motions=None) -> int:
         ("--num-trajectories", args.num_trajectories),
         ("--plot-estimates", args.plot_estimates or None),
         ("--no-platform-probe", args.no_platform_probe or None),
+        ("--mirror", args.mirror),
     ):
         if value is not None:
             p.error(f"{flag} does not apply to --suite")
-    drive = args.platform_drive or rm.DEFAULT_DRIVE
-    robots = args.robots_per_scenario or rm.DEFAULT_ROBOTS_PER_SCENARIO
+    drive = rm.DEFAULT_DRIVE if args.platform_drive is None else args.platform_drive
+    robots = rm.DEFAULT_ROBOTS_PER_SCENARIO if args.robots_per_scenario is None else args.robots_per_scenario
+    if motions is not None and args.scenarios:
+        p.error("give --scenarios or motions, not both")
     try:
         if motions is None:
-            motions = rm.build_motions(rm.scenario_names(args.scenarios))
-        elif args.scenarios:
-            p.error("give --scenarios or motions, not both")
-        names = [m.name for m in motions]
-        bench = load_or_make_benchmark(args.benchmark)
-        episodes = rm.make_episodes(motions, bench.robots, robots)
-        duration_s = max(m.duration_s for m in motions)
-        extra = rm.env_overrides(duration_s, drive)
-        args.num_trajectories = episodes.num_episodes
-        out_dir = prepare_out_dir(args.out or default_out_dir(args, Path("eval") / rm.SUITE_NAME), args.force)
-        env, controller, policy, method = build(args, extra)
-    except (CheckpointError, bm.BenchmarkFileError, ValueError) as err:
+            names = rm.scenario_names(args.scenarios)  # checked before anything is made
+        out = od.claim_out(args, Path("eval") / rm.SUITE_NAME, claimed)
+    except (*INPUT_ERRORS, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    tracking = rm.platform_tracking(episodes, eval_env_overrides(len(names), args.seed, extra))
-    run = run_benchmark(env, controller, episodes, episodes.num_episodes, policy=policy)
-    per_episode = run["episodes"]
-    result = {
-        "method": method,
-        "suite": rm.SUITE_NAME,
-        "benchmark_robots": str(args.benchmark),
-        "robots_per_scenario": robots,
-        "duration_s": duration_s,
-        "platform_drive": drive,
-        "platform_drive_overrides": rm.PLATFORM_DRIVES[drive],
-        "num_episodes": episodes.num_episodes,
-        "scenarios": rm.per_scenario(episodes, per_episode),
-        "overall": summarize(per_episode, len(names)),
-        "platform_tracking": tracking,
-        "reference_motion": {m.name: rm.motion_summary(m) for m in motions},
-        "wall_time_s": run["wall_time_s"],
-    }
-    if "estimator" in run:
-        result["estimator"] = run["estimator"]
-    ep.write_csv(
-        out_dir / ep.EPISODES_FILE,
-        rm.episode_table(episodes, per_episode, env.cfg.init_state),
-        rm.EPISODE_COLUMNS,
-    )
-    written = write_results(out_dir, result, rm.markdown)
-    print((out_dir / "metrics.md").read_text())
-    print(where_written(out_dir, [*written, ep.EPISODES_FILE]))
-    return 0
+    with out:
+        try:
+            if motions is None:
+                motions = rm.build_motions(names)
+            names = [m.name for m in motions]
+            bench = load_or_make_benchmark(args.benchmark)
+            episodes = rm.make_episodes(motions, bench.robots, robots)
+            duration_s = max(m.duration_s for m in motions)
+            extra = rm.env_overrides(duration_s, drive)
+            args.num_trajectories = episodes.num_episodes
+            out.check_space(episodes.num_episodes)
+            checkpoint = od.checkpoint_file(args.checkpoint)
+            env, controller, policy, method = build(args, extra, checkpoint)
+            inputs = od.provenance(args, checkpoint, args.benchmark)
+        except (*INPUT_ERRORS, ValueError) as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
+        tracking = rm.platform_tracking(episodes, eval_env_overrides(len(names), args.seed, extra))
+        run = run_benchmark(env, controller, episodes, episodes.num_episodes, policy=policy)
+        per_episode = run["episodes"]
+        result = rm.suite_result(method, episodes, motions, run, tracking, drive, args.benchmark, inputs)
+        table = rm.episode_table(episodes, per_episode, env.cfg.init_state)
+        episodes_file = (ep.EPISODES_FILE, lambda path: ep.write_csv(path, table, rm.EPISODE_COLUMNS))
+        return od.publish(out, rm.markdown(result), [*od.result_writers(result, rm.markdown), episodes_file])

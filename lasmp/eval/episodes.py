@@ -9,7 +9,7 @@ The platform probe's columns (PROBE_COLUMNS) come from `lasmp.eval.platform_prob
 The CSV: a header row, then one row per episode in benchmark order; empty cells are "no value"
 (NaN: no counted step, no collision, no probe). evaluate.py writes it gzip-compressed (10,000 rows
 are 5 MB of text); records written before that are plain `episodes.csv`. `read_csv` reads either
-back, checked; `episodes_path` finds a directory's.
+back, checked (each episode in one row); `episodes_path` finds a directory's.
 """
 
 from __future__ import annotations
@@ -192,7 +192,28 @@ def read_csv(path) -> dict[str, np.ndarray]:
             ) from None
     for c in OPTIONAL_COLUMNS:
         out.setdefault(c, np.full(len(body), np.nan))
+    check_episode_keys(path, out["episode"])
     return out
+
+
+def check_episode_keys(path, episode: np.ndarray) -> None:
+    """Each row's `episode` is a whole number >= 0, and no episode has two rows: every figure read
+    from the record counts each episode once (a row pasted twice would count its collision twice).
+    EpisodesFileError naming the file, the episode and its rows (as numbered in the file)."""
+    bad = np.flatnonzero(~np.isfinite(episode) | (episode < 0) | (episode != np.round(episode)))
+    if len(bad):
+        raise EpisodesFileError(
+            f"{path}: row {bad[0] + 2}: the episode must be a whole number >= 0, got {episode[bad[0]]!r}"
+        )
+    keys, counts = np.unique(episode, return_counts=True)
+    if (counts > 1).any():
+        k = int(np.argmax(counts > 1))
+        rows = np.flatnonzero(episode == keys[k]) + 2
+        raise EpisodesFileError(
+            f"{path}: episode {int(keys[k])} appears {counts[k]} times (rows "
+            f"{', '.join(map(str, rows[:4]))}{', ...' if len(rows) > 4 else ''}); a record holds each "
+            "episode once: remove the repeated rows, or evaluate again"
+        )
 
 
 def _is_float(x: str) -> bool:

@@ -104,8 +104,24 @@ def markdown(result: dict) -> str:
         ]
         lines += [f"| {name} | {value:.4f} |" for name, value in est["x_exp_mean_abs_error"].items()]
         lines.append(f"| l_imp (mean L2) | {est['l_imp_mean_l2_error']:.4f} |")
-    lines += ["", f"Wall time: {result['wall_time_s']:.1f} s.", ""]
+    lines += ["", *inputs_line(result), f"Wall time: {result['wall_time_s']:.1f} s.", ""]
     return "\n".join(lines)
+
+
+def inputs_line(result: dict) -> list[str]:
+    """[one line: the seed and the first 12 hex digits of the inputs' SHA-256 (whole in
+    metrics.json)], or [] for a result that does not record them."""
+    if "seed" not in result:
+        return []
+    parts = [f"seed {result['seed']}"]
+    for key, name in (
+        ("benchmark_sha256", "benchmark"),
+        ("trajectories_sha256", "trajectories"),
+        ("checkpoint_sha256", "checkpoint"),
+    ):
+        if result.get(key):
+            parts.append(f"{name} sha256 {result[key][:12]}")
+    return [f"Inputs: {', '.join(parts)}."]
 
 
 def write_results(out_dir: Path, result: dict, render=markdown) -> list[str]:

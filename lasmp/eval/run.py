@@ -144,51 +144,55 @@ def run_benchmark(
     est = {"abs_sum": None, "l2_sum": 0.0, "count": 0}
     first_wave: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (episode per env, true, estimate)
     done_count, start, last_print = 0, time.perf_counter(), 0.0
-    with torch.inference_mode():
-        while done_count < num_episodes:
-            ep_before = source.episode_of_env.copy()
-            active = ep_before >= 0
-            if shrink_tail and source.next_episode >= num_episodes:
-                env.stepped_envs = torch.as_tensor(np.flatnonzero(active), device=env.device)
-            if policy is not None:
-                x_true, x_hat = _accumulate_estimates(policy, obs, active, est)
-                if trace and ((ep_before >= 0) & (ep_before < env.num_envs)).any():
-                    first_wave.append((ep_before, x_true.numpy().copy(), x_hat.numpy().copy()))
-            obs, _, done, extras = env.step(controller(obs))
-            metrics.step(active, captured["collision"], captured["pose"], captured["tau"], captured["q_dot"])
-            gait.step(active, captured["feet"])
-            done = done.cpu().numpy()
-            ids = np.flatnonzero(done & active)
-            if len(ids):
-                collided = ~extras["time_outs"].cpu().numpy()[ids]
-                rows = ep_before[ids]
-                closed = {**metrics.close(ids, collided), **gait.close(ids)}
-                for key, value in closed.items():
-                    episodes[key][rows] = value
-                # the collision step is the first one not counted: it ends at (steps + 1) dt
-                episodes["collision_time_s"][rows] = np.where(
-                    collided, (closed["steps"] + 1) * env.dt_s, np.nan
+    try:  # the progress line ends however the loop does (Ctrl-C's one line then starts afresh)
+        with torch.inference_mode():
+            while done_count < num_episodes:
+                ep_before = source.episode_of_env.copy()
+                active = ep_before >= 0
+                if shrink_tail and source.next_episode >= num_episodes:
+                    env.stepped_envs = torch.as_tensor(np.flatnonzero(active), device=env.device)
+                if policy is not None:
+                    x_true, x_hat = _accumulate_estimates(policy, obs, active, est)
+                    if trace and ((ep_before >= 0) & (ep_before < env.num_envs)).any():
+                        first_wave.append((ep_before, x_true.numpy().copy(), x_hat.numpy().copy()))
+                obs, _, done, extras = env.step(controller(obs))
+                metrics.step(
+                    active, captured["collision"], captured["pose"], captured["tau"], captured["q_dot"]
                 )
-                causes = cause_names(captured["contact"][ids], captured["fell"][ids])
-                episodes["collision_cause"][rows] = np.where(collided, causes, "")
-                done_count += len(ids)
-            restarted = np.flatnonzero(done)
-            if len(restarted):
-                metrics.start(restarted, TrunkPose.from_readout(as_numpy(env.readout)).rows(restarted))
-                gait.start(restarted)
-            now = time.perf_counter()
-            if progress and (now - last_print > 2.0 or done_count == num_episodes):
-                last_print = now
-                rate = done_count / max(now - start, 1e-9)
-                eta = (num_episodes - done_count) / rate if rate > 0 else float("nan")
-                print(
-                    f"\r{done_count}/{num_episodes} episodes | {rate:.1f} episodes/s | ETA {eta:5.0f} s",
-                    end="",
-                    file=sys.stderr,
-                    flush=True,
-                )
-    if progress:
-        print(file=sys.stderr)
+                gait.step(active, captured["feet"])
+                done = done.cpu().numpy()
+                ids = np.flatnonzero(done & active)
+                if len(ids):
+                    collided = ~extras["time_outs"].cpu().numpy()[ids]
+                    rows = ep_before[ids]
+                    closed = {**metrics.close(ids, collided), **gait.close(ids)}
+                    for key, value in closed.items():
+                        episodes[key][rows] = value
+                    # the collision step is the first one not counted: it ends at (steps + 1) dt
+                    episodes["collision_time_s"][rows] = np.where(
+                        collided, (closed["steps"] + 1) * env.dt_s, np.nan
+                    )
+                    causes = cause_names(captured["contact"][ids], captured["fell"][ids])
+                    episodes["collision_cause"][rows] = np.where(collided, causes, "")
+                    done_count += len(ids)
+                restarted = np.flatnonzero(done)
+                if len(restarted):
+                    metrics.start(restarted, TrunkPose.from_readout(as_numpy(env.readout)).rows(restarted))
+                    gait.start(restarted)
+                now = time.perf_counter()
+                if progress and (now - last_print > 2.0 or done_count == num_episodes):
+                    last_print = now
+                    rate = done_count / max(now - start, 1e-9)
+                    eta = (num_episodes - done_count) / rate if rate > 0 else float("nan")
+                    print(
+                        f"\r{done_count}/{num_episodes} episodes | {rate:.1f} episodes/s | ETA {eta:5.0f} s",
+                        end="",
+                        file=sys.stderr,
+                        flush=True,
+                    )
+    finally:
+        if progress:
+            print(file=sys.stderr)
     env.on_step = None
     env.episode_source = None
     env.stepped_envs = None

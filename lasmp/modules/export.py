@@ -3,6 +3,7 @@ in `policy.py`) and the metadata that travels with it, what a robot runtime need
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import warnings
@@ -20,6 +21,7 @@ if TYPE_CHECKING:
 # Deployment metadata: what a robot runtime needs to run the exported policy without this repo
 # ---------------------------------------------------------------------------------------------
 METADATA_VERSION = 1  # bump when a key changes meaning or disappears (docs/deploy.md lists them)
+SIDECAR_HASH_KEY = "onnx_sha256"  # policy.json only: the sha256 of the policy.onnx it describes
 BODY_FRAME = "trunk (body) frame at the IMU/trunk origin: x forward, y left, z up"
 
 # o_t, slot by slot, as `lasmp.envs.robot.proprioception` builds it (tests/modules/test_export.py holds the
@@ -200,15 +202,42 @@ def write_onnx(module, path: str | Path) -> None:
         registry.setLevel(level)
 
 
+def file_sha256(path: str | Path) -> str:
+    """The hex sha256 of the file at `path`, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def sidecar_text(metadata: dict, onnx_sha256: str) -> str:
+    """`policy.json`: `onnx_sha256` first, then the metadata, one key a line and each value compact
+    (JSON that reads like the list in docs/deploy.md)."""
+    items = {SIDECAR_HASH_KEY: onnx_sha256, **metadata}
+    lines = [f"  {json.dumps(key)}: {json.dumps(value)}" for key, value in items.items()]
+    return "{\n" + ",\n".join(lines) + "\n}\n"
+
+
 def export_policy(policy, out_dir: str | Path, metadata: dict | None = None) -> Path:
     """Write the deployable policy (input obs_window (1, H+1, D), output actions) as ONNX.
 
     With `metadata` (`lasmp.modules.export.deploy_metadata`), the file carries it in its
-    `metadata_props` (each value JSON-encoded) and `policy.json` is written beside it.
+    `metadata_props` (each value JSON-encoded) and `policy.json` is written beside it, with the
+    sha256 of the ONNX file's bytes (`onnx_sha256`): what ties the two, so that a runtime refuses a
+    sidecar that came from another export or was edited (docs/deploy.md's loader).
+
+    Both are written atomically. The hash is taken of the finished temporary file, the very bytes
+    that are renamed into place; the sidecar is renamed after the ONNX, so a failure between the two
+    leaves an ONNX whose sidecar's hash does not match, which the loader refuses, rather than a
+    pair that looks whole. `play.py` stages both files and renames them together (`export_into`).
     """
+    if metadata is not None and SIDECAR_HASH_KEY in metadata:
+        raise ValueError(f"the metadata must not hold {SIDECAR_HASH_KEY!r}: export_policy adds it")
     out_dir = Path(out_dir)
     module = policy.as_onnx(False).eval()
     path = out_dir / "policy.onnx"
+    written: dict[str, str] = {}
 
     def write(tmp: str) -> None:
         write_onnx(module, tmp)
@@ -218,11 +247,12 @@ def export_policy(policy, out_dir: str | Path, metadata: dict | None = None) -> 
             model = onnx.load(tmp)
             onnx.helper.set_model_props(model, metadata_props(metadata))
             onnx.save(model, tmp)
+        written["sha256"] = file_sha256(tmp)
 
-    atomic_write_with(path, write)
-    if metadata is not None:
-        # one key a line, each value compact: JSON that reads like the list in docs/deploy.md
-        lines = [f"  {json.dumps(key)}: {json.dumps(value)}" for key, value in metadata.items()]
-        with atomic_open(out_dir / "policy.json", "w") as f:
-            f.write("{\n" + ",\n".join(lines) + "\n}\n")
+    if metadata is None:
+        atomic_write_with(path, write)
+        return path
+    with atomic_open(out_dir / "policy.json", "w") as f:  # renamed when the ONNX is in place
+        atomic_write_with(path, write)
+        f.write(sidecar_text(metadata, written["sha256"]))
     return path

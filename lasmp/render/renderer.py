@@ -10,13 +10,19 @@ Mesa's EGL; the default set here) or `MUJOCO_GL=osmesa` with libosmesa6 installe
 
 from __future__ import annotations
 
+import errno
 import importlib
 import math
 import os
+import subprocess
+import tempfile
+import warnings
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 
+from lasmp.atomic import TEMPORARY_SUFFIX, AtomicWriteError, atomic_open
 from lasmp.render.caption import caption_text, draw_caption
 from lasmp.render.world import build_render_model
 
@@ -51,6 +57,27 @@ def select_gl_backend() -> None:
     if want in ("egl", "osmesa") and getattr(gl_context, "_MUJOCO_GL", want) != want:
         gl_context.GLContext = importlib.import_module(f"mujoco.{want}").GLContext
         gl_context._MUJOCO_GL = want
+
+
+def check_offscreen_gl() -> None:
+    """RenderError, saying what to install or set, where no offscreen OpenGL context can be made.
+
+    A command that renders checks this before its long work: without it, the first frame (after the
+    env is built) failed in a PyOpenGL traceback that named neither MUJOCO_GL nor a remedy."""
+    try:
+        select_gl_backend()
+        import mujoco
+
+        with warnings.catch_warnings():  # GLFW warns before it fails: the error below says it all
+            warnings.simplefilter("ignore")
+            mujoco.Renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 8, 8).close()
+    except Exception as err:  # no EGL/OSMesa library, no device: PyOpenGL raises whatever it meets
+        why = (str(err).strip().splitlines() or [""])[0]
+        raise RenderError(
+            f"--video and --snapshots need offscreen OpenGL, and MUJOCO_GL={os.environ.get('MUJOCO_GL')} "
+            f"failed ({type(err).__name__}: {why}); use MUJOCO_GL=egl (a GPU driver or Mesa's EGL) or "
+            "MUJOCO_GL=osmesa with libosmesa6 installed"
+        ) from err
 
 
 def _row(x, i: int) -> np.ndarray:
@@ -150,36 +177,130 @@ class EnvRenderer:
         self.renderer.close()
 
 
-class VideoWriter:
-    """mp4 at one frame per policy step, streamed to disk (imageio + imageio-ffmpeg)."""
+def ffmpeg_exe() -> str:
+    """The ffmpeg binary `--video` streams frames to (imageio-ffmpeg's); RenderError if it is missing,
+    so a command can check it before any work."""
+    try:
+        import imageio_ffmpeg
+    except ImportError as err:
+        raise RenderError(
+            f"--video needs imageio and imageio-ffmpeg ({err}); install them with: pip install -e .[video]"
+        ) from err
+    return imageio_ffmpeg.get_ffmpeg_exe()
 
-    def __init__(self, path: str, fps: float):
-        try:
-            import imageio.v2 as imageio
-            import imageio_ffmpeg  # noqa: F401  (the mp4 plugin's backend)
-        except ImportError as err:
-            raise RenderError(
-                f"--video needs imageio and imageio-ffmpeg ({err}); install them with: pip install -e .[video]"
-            ) from err
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        self.path = path
-        self.writer = imageio.get_writer(path, fps=fps, codec="libx264", macro_block_size=16)
+
+class VideoWriter:
+    """mp4 (H.264) at one frame per policy step, streamed to an ffmpeg process.
+
+    Written the way lasmp.atomic writes: into a hidden temporary file beside `path`, renamed over it
+    by `close()` only once ffmpeg has finished without error; `abort()` (and any failure) removes it.
+    So an interrupted or failed run leaves no half-written video, and an older file at `path` as it
+    was. ffmpeg is driven directly (not through imageio's writer) because imageio neither reports
+    ffmpeg's exit status (a full disk at the last flush went unnoticed) nor says why a frame's write
+    failed (a bare Broken pipe): here a failure is an AtomicWriteError naming `path` and ffmpeg's reason.
+    ffmpeg runs in its own session, so a Ctrl-C reaches this process only, which then aborts it.
+    """
+
+    CRF = 25  # H.264 quality: imageio's default ("quality 5"), which this writer replaced
+
+    def __init__(self, path: str | os.PathLike, fps: float):
+        self.exe = ffmpeg_exe()
+        self.path = Path(path)
+        self.fps = fps
         self.frames = 0
+        self._proc: subprocess.Popen | None = None
+        try:
+            self._log = tempfile.TemporaryFile()  # ffmpeg's messages, read back for the error line
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(
+                prefix=f".{self.path.name}.", suffix=TEMPORARY_SUFFIX, dir=self.path.parent
+            )
+            os.close(fd)
+        except OSError as err:
+            raise AtomicWriteError(self.path, err) from err
+        self._tmp = Path(tmp)
+
+    def _start(self, shape: tuple[int, ...]) -> None:
+        height, width = shape[:2]
+        fps = str(Fraction(self.fps).limit_denominator())
+        source = f"-f rawvideo -pix_fmt rgb24 -s {width}x{height} -r {fps} -i -".split()
+        # H.264 in yuv420p (what players take); the format by name: the temporary file ends in .tmp
+        encode = f"-an -vcodec libx264 -pix_fmt yuv420p -crf {self.CRF} -f mp4".split()
+        self._proc = subprocess.Popen(
+            [self.exe, "-y", "-v", "error", *source, *encode, str(self._tmp)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            stderr=self._log,
+            start_new_session=True,
+        )
+
+    def _failed(self, err: OSError | None) -> AtomicWriteError:
+        """The error of a failed ffmpeg (the temporary file removed): its last message says why."""
+        code = self._proc.wait() if self._proc is not None else None
+        self._log.seek(0)
+        lines = [ln.strip() for ln in self._log.read().decode(errors="replace").splitlines() if ln.strip()]
+        if lines:  # "[out#0/mp4 @ 0x...] Error closing file: No space left on device": its reason
+            reason = lines[-1].split("] ", 1)[-1]
+        else:
+            reason = f"killed by signal {-code}" if code is not None and code < 0 else f"exit status {code}"
+        self.abort()
+        number = errno.ENOSPC if "No space left" in reason else getattr(err, "errno", None) or errno.EIO
+        return AtomicWriteError(self.path, OSError(number, f"ffmpeg stopped: {reason}"))
 
     def add(self, frame: np.ndarray) -> None:
-        self.writer.append_data(frame)
+        """Append one (height, width, 3) uint8 frame; AtomicWriteError if ffmpeg has stopped."""
+        if self._proc is None:
+            self._start(frame.shape)
+        try:
+            self._proc.stdin.write(np.ascontiguousarray(frame, dtype=np.uint8).tobytes())
+        except OSError as err:  # a broken pipe: ffmpeg exited (a full disk, ...)
+            raise self._failed(err) from err
         self.frames += 1
 
     def close(self) -> None:
-        self.writer.close()
+        """Finish the file and rename it over `path`; AtomicWriteError (nothing written) if ffmpeg fails."""
+        if self._proc is None:
+            self.abort()
+            raise ValueError(f"{self.path}: no frames to write")
+        try:
+            self._proc.stdin.close()
+        except OSError as err:
+            raise self._failed(err) from err
+        if self._proc.wait() != 0:
+            raise self._failed(None)
+        try:
+            os.chmod(self._tmp, 0o644)  # mkstemp makes 0600
+            os.replace(self._tmp, self.path)
+        except OSError as err:
+            self.abort()
+            raise AtomicWriteError(self.path, err) from err
+        self._log.close()
+
+    def abort(self) -> None:
+        """Stop ffmpeg and remove the temporary file: nothing written, an older `path` untouched."""
+        if self._proc is not None and self._proc.poll() is None:
+            self._proc.kill()
+            self._proc.wait()
+        if self._proc is not None and self._proc.stdin and not self._proc.stdin.closed:
+            try:
+                self._proc.stdin.close()
+            except OSError:  # the pipe's buffered bytes cannot go anywhere now
+                pass
+        try:
+            self._tmp.unlink(missing_ok=True)
+        except OSError:  # a disk turned read-only: the error that brought us here is the one to report
+            pass
+        self._log.close()
 
 
-def save_snapshots(frames: list[np.ndarray], path: str) -> None:
-    """The frames side by side, left to right in time, as one PNG."""
+def save_snapshots(frames: list[np.ndarray], path: str | os.PathLike) -> None:
+    """The frames side by side, left to right in time, as one PNG, written atomically
+    (AtomicWriteError naming `path` if it cannot be)."""
     from matplotlib import image
 
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    image.imsave(path, np.concatenate(frames, axis=1))
+    strip = np.concatenate(frames, axis=1)
+    with atomic_open(path) as f:
+        image.imsave(f, strip, format="png")
 
 
 def snapshot_steps(steps: int, count: int = SNAPSHOT_COUNT) -> set[int]:

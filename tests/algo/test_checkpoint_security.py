@@ -185,5 +185,18 @@ def test_an_older_pickled_checkpoint_is_refused_with_the_convert_command_and_con
     assert fresh.current_learning_iteration == 2
     assert torch.equal(fresh.env.episode_length_buf, env.episode_length_buf)
     assert np.array_equal(fresh.env.sim.get_state()["state"], env.sim.get_state()["state"])
-    with pytest.raises(CheckpointError, match="never overwrites"):
+    with pytest.raises(CheckpointError, match=r"new\.pt already exists: choose another OUT, or pass --force"):
         convert_trusted(tmp_path / "old.pt", tmp_path / "new.pt")
+
+
+@pytest.mark.parametrize(
+    "saved",
+    [
+        {"__plain__": "ndarray", "data": 5},
+        {"__plain__": "tensordict", "batch_size": [2], "data": [1, 2]},
+        {"__plain__": "dataclass", "class": "_Pair", "fields": [1, 2]},
+    ],
+)
+def test_plain_state_refuses_a_tagged_value_of_the_wrong_type_by_name(saved):
+    with pytest.raises(PlainStateError, match=r"state\.x: a stored \w+ without its"):
+        unpack({"x": saved}, {"x": _Pair(torch.zeros(1), np.zeros(1))})

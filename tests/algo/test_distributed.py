@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -125,13 +126,13 @@ def test_one_process_refuses_a_two_process_checkpoint_unless_told_to_restart_the
     assert again.returncode == 0, again.stderr[-2000:]
 
 
-def test_sigterm_to_the_job_stops_both_ranks_after_the_same_iteration_with_one_checkpoint(tmp_path):
-    run = tmp_path / "run"
+def _long_two_process_run(run: Path, save_interval: int) -> subprocess.Popen:
+    """A tiny two-process torchrun of 500 iterations into `run`, its output piped (stopped by the test)."""
     args = [
         "train.py",
         "env.num_envs=4",
         "runner.max_iterations=500",
-        "runner.save_interval=1000",
+        f"runner.save_interval={save_interval}",
         "runner.num_steps_per_env=5",
         "policy.actor_hidden_dims=[32,32,32]",
         "policy.critic_hidden_dims=[32,32]",
@@ -140,13 +141,24 @@ def test_sigterm_to_the_job_stops_both_ranks_after_the_same_iteration_with_one_c
         f"runner.log_dir={run}",
     ]
     cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2", *args]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT)
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT)
+
+
+def _wait_for_iteration(proc: subprocess.Popen, it: int, timeout_s: float = 240) -> None:
+    """Read `proc`'s output until its progress line of iteration `it`."""
+    deadline = time.monotonic() + timeout_s
+    for line in proc.stdout:
+        if line.startswith(f"it {it}/"):
+            return
+        assert time.monotonic() < deadline, f"no iteration {it} in time"
+    raise AssertionError(f"the run ended before iteration {it}")
+
+
+def test_sigterm_to_the_job_stops_both_ranks_after_the_same_iteration_with_one_checkpoint(tmp_path):
+    run = tmp_path / "run"
+    proc = _long_two_process_run(run, save_interval=1000)
     try:
-        deadline = time.monotonic() + 240
-        for line in proc.stdout:
-            if line.startswith("it 2/"):
-                break
-            assert time.monotonic() < deadline, "no third iteration in time"
+        _wait_for_iteration(proc, 2)
         proc.send_signal(signal.SIGTERM)
         rest, _ = proc.communicate(timeout=120)
     finally:
@@ -211,3 +223,48 @@ def test_the_shared_curriculum_promotes_on_the_success_rate_over_all_ranks_episo
     states = [torch.load(tmp_path / f"curriculum{k}.pt", weights_only=True) for k in (0, 1)]
     assert states[0] == states[1]
     assert states[0]["rose"] and states[0]["state"] == {"level": 6, "window": []}
+
+
+def _rank_pids(agent: int) -> dict[int, int]:
+    """The torchrun workers started by the agent process `agent`: {RANK: pid}."""
+    found = {}
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            ppid = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            env = dict(e.split(b"=", 1) for e in (proc / "environ").read_bytes().split(b"\0") if b"=" in e)
+        except (OSError, ValueError, IndexError):
+            continue
+        if ppid == agent and b"RANK" in env:
+            found[int(env[b"RANK"])] = int(proc.name)
+    return found
+
+
+@pytest.mark.parametrize("victim", [1, 0])
+def test_a_killed_rank_leaves_the_other_saying_what_happened_and_how_to_resume(tmp_path, victim):
+    """D04 / D05: SIGKILL to one rank mid-run. The other's next collective fails (gloo: `Connection
+    closed by peer`); it must end with one message naming the newest checkpoint and the resume
+    command, not with the collective's traceback."""
+    run = tmp_path / "run"
+    proc = _long_two_process_run(run, save_interval=2)
+    try:
+        _wait_for_iteration(proc, 3)
+        pids = _rank_pids(proc.pid)
+        assert set(pids) == {0, 1}, pids
+        os.kill(pids[victim], signal.SIGKILL)
+        rest, _ = proc.communicate(timeout=180)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    survivor = 1 - victim
+    assert proc.returncode != 0
+    said = [line for line in rest.splitlines() if line.startswith("error: ")]
+    assert len(said) == 1 and f"rank {survivor} of the torchrun job lost the connection" in said[0], rest[
+        -4000:
+    ]
+    newest = max(run.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
+    assert f"The newest checkpoint is {newest}" in said[0], rest[-4000:]
+    assert "torchrun --nproc_per_node=2 train.py" in rest and f"resume={newest}" in rest
+    # torchrun's own ChildFailedError summary remains; no traceback of the worker's
+    assert "Connection closed by peer" not in rest and "lasmp/train.py" not in rest, rest[-4000:]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import os
+import shlex
 import signal
 import subprocess
 import sys
@@ -211,7 +212,7 @@ def test_signal_during_train_py_saves_the_current_iteration_and_prints_the_resum
     # a resume runs runner.max_iterations more: the command asks for those left of the first one's 500
     assert f"runner.max_iterations={500 - (stopped_at + 1)}" in command.split()
 
-    resume = command.split()[2:]
+    resume = shlex.split(command)[2:]  # the command is quoted for the shell: pasted, it is split so
     resume = [a if not a.startswith("runner.max_iterations=") else "runner.max_iterations=1" for a in resume]
     again = subprocess.run(
         [sys.executable, str(ROOT / "train.py"), *resume],

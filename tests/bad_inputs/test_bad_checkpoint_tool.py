@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import re
+from pathlib import Path
 
 import pytest
 from badkit import _disk_full, _one_line_naming, _truncated, _write, call, files, refused, succeeded
@@ -118,3 +119,57 @@ def test_info_of_a_policy_checkpoint_says_so(base_run, tmp_path):
     out = call(ckpt_tool.main, ["info", str(tmp_path / "p.pt")])
     succeeded(out)
     assert "policy checkpoint" in out.text
+
+
+# -- the writers' guard: DST checked before SRC is read; real disks ------------------------------
+SHIPPED = Path(__file__).resolve().parents[2] / "resources" / "policies" / "lasmp_a1.pt"
+
+
+def test_policy_onto_an_unknown_extension_is_refused_before_the_source_is_read(tmp_path):
+    src = tmp_path / "notes.pt"
+    src.write_text("not a checkpoint: reading it first would say so")
+    out = call(ckpt_tool.main, ["policy", str(src), str(tmp_path / "policy.onnx")])
+    refused(out, r"unknown extension '\.onnx'; use \.pt or \.pth")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.pt"]
+
+
+def test_policy_into_a_read_only_directory_is_refused_before_the_source_is_read(tmpfs, tmp_path):
+    where = tmpfs(read_only=True)
+    out = call(ckpt_tool.main, ["policy", str(SHIPPED), str(where / "sub" / "policy.pt")])
+    refused(out, r"not writable")
+    assert list(where.iterdir()) == []
+
+
+def test_policy_onto_a_real_full_disk_gives_one_line_naming_the_file_and_leaves_nothing(tmpfs):
+    where = tmpfs(size="64k")
+    dst = where / "policy.pt"
+    out = call(ckpt_tool.main, ["policy", str(SHIPPED), str(dst)])
+    refused(out, r"No space left on device")
+    assert [line for line in out.text.splitlines() if line.strip()] == [
+        f"error: cannot write {dst}: No space left on device (the file is left as it was)"
+    ]
+    assert list(where.iterdir()) == []
+
+
+def test_convert_replaces_an_existing_file_only_with_force(base_run, tmp_path):
+    dst = tmp_path / "converted.pt"
+    dst.write_text("mine")
+    refused(call(ckpt_tool.main, ["convert", "--trust", str(base_run / "model_1.pt"), str(dst)]), "--force")
+    assert dst.read_text() == "mine"
+    succeeded(call(ckpt_tool.main, ["convert", "--trust", "--force", str(base_run / "model_1.pt"), str(dst)]))
+    assert ckpt_tool.read_checkpoint(dst)["iter"] == 1
+
+
+def test_convert_of_an_onnx_model_names_it_and_unpickles_nothing(tmp_path):
+    onnx = tmp_path / "policy.onnx"
+    onnx.write_bytes((SHIPPED.parent / "lasmp_a1.onnx").read_bytes())
+    out = call(ckpt_tool.main, ["convert", "--trust", str(onnx), str(tmp_path / "c.pt")])
+    refused(out, r"policy\.onnx is not a PyTorch checkpoint \(an ONNX model\?")
+    assert not (tmp_path / "c.pt").exists()
+
+
+def test_policy_of_a_fifo_is_refused_without_hanging(tmp_path):
+    os.mkfifo(tmp_path / "model_1.pt")
+    out = call(ckpt_tool.main, ["policy", str(tmp_path / "model_1.pt"), str(tmp_path / "p.pt")])
+    refused(out, r"named pipe")
+    assert not (tmp_path / "p.pt").exists()

@@ -90,6 +90,22 @@ def _config_unknown_key(data):
     data["config"]["env"]["bogus"] = 1
 
 
+def _nan_learning_rate(data):
+    data["optimizer_state_dict"]["param_groups"][0]["lr"] = float("nan")
+
+
+def _negative_learning_rate(data):
+    data["optimizer_state_dict"]["param_groups"][0]["lr"] = -1e-3
+
+
+def _negative_action_std(data):
+    data["actor_state_dict"]["distribution.std_param"].fill_(-0.5)
+
+
+def _nan_action_in_the_env_state(data):
+    data["env_state"]["run"]["attrs"]["action"].view(-1)[0] = float("nan")
+
+
 def _pop(key):
     return lambda data: data.pop(key)
 
@@ -127,6 +143,20 @@ CHECKPOINT_CASES = {
     "a running state lacking a buffer": (_edit(_run_state_lacking), "running state"),
     "a corrupt random state": (_edit(_bad_rng), "random state"),
     "a config this code cannot rebuild": (_edit(_config_unknown_key), "bogus"),
+    # a state a training cannot go on from: refused naming the entry, not after a step (issue 42)
+    "a NaN learning rate in the optimizer (C_nan_lr)": (
+        _edit(_nan_learning_rate),
+        r"optimizer_state_dict\.param_groups\[0\]\.lr is not finite",
+    ),
+    "a negative learning rate": (
+        _edit(_negative_learning_rate),
+        r"param_groups\[0\]\.lr = -0.001 is out of range",
+    ),
+    "a negative action noise": (_edit(_negative_action_std), r"distribution\.std_param = .* is out of range"),
+    "a NaN action in the envs' running state (C_nan_action)": (
+        _edit(_nan_action_in_the_env_state),
+        r"env_state\.run\.attrs\.action is not finite",
+    ),
 }
 
 

@@ -148,3 +148,41 @@ def test_a_training_leaves_the_working_directory_clean_but_for_its_run(tmp_path)
     assert proc.returncode == 0, err[-2000:]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no train.log, no outputs/
     assert (tmp_path / "run" / "model_0.pt").exists() and not list((tmp_path / "run").glob(".*"))
+
+
+# -- default run directories: one per job ----------------------------------------------------------
+def test_a_default_run_directory_already_taken_in_the_same_second_gets_a_suffix(tmp_path, monkeypatch):
+    """H02: the default name has one-second resolution; a second start in that second must not meet
+    the first's directory (it would be refused as one that holds a run)."""
+    import datetime as real
+
+    import lasmp.train as lt
+    from lasmp.train_cfg import TrainCfg
+
+    class Frozen(real.datetime):
+        @classmethod
+        def now(cls, tz=None):
+            return real.datetime(2026, 1, 2, 3, 4, 5)
+
+    monkeypatch.setattr(lt.datetime, "datetime", Frozen)
+    cfg = TrainCfg()
+    first = lt.default_log_dir(cfg)
+    (tmp_path / first).mkdir(parents=True)
+    second = lt.default_log_dir(cfg)
+    (tmp_path / second).mkdir(parents=True)
+    third = lt.default_log_dir(cfg)
+    assert first.endswith("2026-01-02_03-04-05")
+    assert (second, third) == (f"{first}-2", f"{first}-3")
+
+
+def test_a_multirun_with_the_default_log_dir_trains_every_job_and_leaves_no_multirun_directory(tmp_path):
+    """H02 and H03: `train.py -m seed=1,2` (jobs of no iteration: they start within one second) gives
+    each job its own run directory; Hydra's sweep record goes under logs/, not to ./multirun/."""
+    proc = train_py(["-m", "seed=1,2", *tiny("runner.max_iterations=0")], tmp_path)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0 and "Traceback" not in out + err, (out + err)[-3000:]
+    runs = sorted((tmp_path / "logs" / "moving_platform" / "lasmp").iterdir())
+    assert len(runs) == 2 and all((r / "config.yaml").exists() for r in runs), (out + err)[-3000:]
+    seeds = sorted(re.search(r"^seed: (\d+)$", (r / "config.yaml").read_text(), re.M).group(1) for r in runs)
+    assert seeds == ["1", "2"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["logs"]  # no multirun/, no outputs/

@@ -3,6 +3,8 @@ trajectory file it cannot read; and the real train.py printing a typo (Hydra's e
 
 from __future__ import annotations
 
+import os
+
 import pytest
 import torch
 from badkit import files, refused, tiny, train, train_py
@@ -69,6 +71,10 @@ CONFIG_CASES = {
     "negative platform mass": (["env.platform.mass_kg=-1"], "env.platform.mass_kg"),
     "feet far above the platform": (["env.init_state.foot_clearance_m=1"], "foot_clearance_m"),
     "negative joint speed limit": (["env.termination.max_joint_vel_rad_s=-1"], "max_joint_vel_rad_s"),
+    # one rule for every seed (lasmp.inputs.check_seed), before any env is built (T03, T04)
+    "a negative seed": (["seed=-1"], r"seed must be an integer in \[0, 2\*\*32 - 1\], got -1"),
+    "a seed of 2**64": (["seed=18446744073709551616"], r"seed must be an integer in \[0, 2\*\*32 - 1\]"),
+    "a seed just past 2**32 - 1": (["seed=4294967296"], r"seed must be an integer"),
 }
 
 
@@ -87,6 +93,46 @@ def test_cuda_without_a_cuda_device_fails_at_start_up_naming_it(tmp_path):
     out = train(tiny("device=cuda", f"runner.log_dir={tmp_path / 'run'}"))
     refused(out, "CUDA")
     assert files(tmp_path / "run") == {}
+
+
+def test_an_env_count_that_cannot_fit_in_memory_is_refused_up_front_with_its_estimate(tmp_path):
+    """T02: a billion envs; refused in seconds, before any of them is allocated, with the estimate."""
+    run = tmp_path / "run"
+    out = train(tiny("env.num_envs=1000000000", f"runner.log_dir={run}"))
+    refused(
+        out, r"env\.num_envs=1000000000 cannot fit in memory", r"needs at least \d", "per env", "available"
+    )
+    assert not run.exists()
+
+
+def test_the_memory_estimate_is_a_lower_bound_of_what_the_envs_take():
+    """The estimate only refuses what cannot fit: it must not exceed the memory envs really take
+    (measured: the resident growth of building 256 envs, per env)."""
+    import dataclasses
+
+    from lasmp.train import make_env
+    from lasmp.train_cfg import to_train_cfg
+    from lasmp.train_resources import env_bytes
+
+    def resident() -> int:
+        return int(open("/proc/self/statm").read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+    cfg = to_train_cfg(compose_tiny())
+    parts = env_bytes(cfg)
+    assert parts["physics"] > 10_000 and parts["observation"] > 0 and parts["rollout storage"] > 0
+    before = resident()
+    env = make_env(dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, num_envs=257)))
+    grown = (resident() - before) / 256
+    del env
+    assert parts["physics"] + parts["observation"] < grown  # what one env holds: at most what it takes
+
+
+def compose_tiny():
+    from badkit import ROOT
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
+        return compose("config", overrides=tiny())
 
 
 # -- a trajectory file given to training ---------------------------------------------------------

@@ -3,12 +3,30 @@ refused (or warned about) naming the file and the problem; physical ones load.""
 
 from __future__ import annotations
 
+import io
+import math
+import os
+import struct
+import time
 import warnings
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
-from badkit import _generated, _pose_far, _raw, _samples, _traj_case, _waypoint_far, files
+from badkit import (
+    _generated,
+    _line_samples,
+    _pose_far,
+    _raw,
+    _samples,
+    _traj_case,
+    _waypoint_far,
+    call,
+    files,
+    refused,
+)
 
 from lasmp.envs import trajectories as trj
 
@@ -72,6 +90,7 @@ def _single_npy(path: Path) -> Path:
 
 TRAJECTORY_REFUSED = {
     "a missing file": (lambda path: path, "no such trajectory file"),
+    "a FIFO, which would block": (lambda path: os.mkfifo(path) or path, "not a regular file"),
     "a text file": (_raw(b"x, y, z\n0, 0, 0\n"), "not a readable .npz"),
     "a truncated file": (_truncated_npz, "not a readable .npz"),
     "a single .npy array": (_single_npy, "single .npy"),
@@ -145,3 +164,99 @@ def test_a_physical_trajectory_file_loads_without_a_warning(tmp_path, kind):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         trj.load(path)
+
+
+# -- an .npz member's size, checked from its header before it is loaded (B_bomb, J07) ------------
+MIB = 1 << 20
+
+
+def bomb_npz(path: Path, arrays: dict, key: str, shape: tuple[int, ...], data_mib: int | None = None) -> Path:
+    """An .npz of `arrays` whose member `key` is a float64 array of zeros of `shape`, deflated: 2 GiB
+    of zeros take 2 MB. `data_mib`: the MiB of zeros that really follow the header (default: all it
+    declares; fewer: a header that lies). Built by hand in a moment: after a full flush the deflate
+    state is reset, so every MiB of zeros compresses to the same block. Its CRC is left 0: a reader
+    that checks the header first never reads that far (the old one inflated it all, then failed)."""
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": shape})
+    header = header.getvalue()
+    mib = math.prod(shape) * 8 // MIB if data_mib is None else data_mib
+    c = zlib.compressobj(9, zlib.DEFLATED, -15)
+    head = c.compress(header) + c.flush(zlib.Z_FULL_FLUSH)
+    block = c.compress(bytes(MIB)) + c.flush(zlib.Z_FULL_FLUSH)
+    data = head + block * mib + c.flush()
+    size, name = len(header) + mib * MIB, f"{key}.npy".encode()
+    assert size < 2**32  # no zip64 needed
+    local = struct.pack("<IHHHHHIIIHH", 0x04034B50, 20, 0, 8, 0, 0x21, 0, len(data), size, len(name), 0)
+    central = struct.pack(
+        "<IHHHHHHIIIHHHHHII",
+        0x02014B50,
+        20,
+        20,
+        0,
+        8,
+        0,
+        0x21,
+        0,
+        len(data),
+        size,
+        len(name),
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+    )
+    with open(path, "wb") as f:
+        f.write(local + name + data)
+        offset = f.tell()
+        f.write(central + name)
+        f.write(struct.pack("<IHHHHIIH", 0x06054B50, 0, 0, 1, 1, len(central + name), offset, 0))
+    with zipfile.ZipFile(path, "a") as zf:
+        for k, a in arrays.items():
+            if k != key:
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, a, allow_pickle=False)
+                zf.writestr(f"{k}.npy", buf.getvalue())
+    return path
+
+
+NPZ_REFUSED = {
+    "2 GiB of waypoints in a 2 MB file": (
+        lambda p: bomb_npz(p, _generated(), "waypoints", (2**28,)),
+        r"more than 1\.0 GiB in memory \('waypoints': a float64 array of shape \(268435456,\), 2\.0 GiB\)",
+    ),
+    "a header that declares 8 GiB of poses": (
+        lambda p: bomb_npz(p, _samples(*_line_samples()), "poses", (2**30,), data_mib=8),
+        r"'poses': a float64 array of shape \(1073741824,\), 8\.0 GiB",
+    ),
+    "a header that declares more than the member holds": (
+        lambda p: bomb_npz(p, _generated(), "waypoints", (4 * MIB,), data_mib=1),
+        r"member 'waypoints\.npy' holds \d+ bytes, but its header declares .*truncated or corrupt",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(NPZ_REFUSED))
+def test_an_npz_member_too_large_or_lying_is_refused_from_its_header_before_loading(tmp_path, case):
+    make, pattern = NPZ_REFUSED[case]
+    path = make(tmp_path / "traj.npz")
+    assert path.stat().st_size < 3 * MIB
+    started = time.monotonic()
+    with pytest.raises(trj.TrajectoryFileError, match=pattern) as err:
+        trj.load(path)
+    assert time.monotonic() - started < 2.0 and str(path) in str(err.value)
+
+
+def test_trajectories_stats_of_a_bomb_gives_one_line_in_a_moment(tmp_path):
+    """J07: `python -m lasmp.envs.trajectories stats --file` spent 37 s and 8 GiB on such a file."""
+    path = bomb_npz(tmp_path / "traj.npz", _generated(), "waypoints", (2**28,))
+    started = time.monotonic()
+    out = call(trj.main, ["stats", "--file", str(path)])
+    refused(out, r"traj\.npz: its arrays would take more than 1\.0 GiB")
+    assert time.monotonic() - started < 5.0 and len(out.text.strip().splitlines()) == 1, out.text
+
+
+def test_a_generated_set_within_the_limit_still_loads(tmp_path):
+    np.savez_compressed(tmp_path / "traj.npz", **_generated(20))  # compressed members are fine
+    assert len(trj.load(tmp_path / "traj.npz")) == 20

@@ -460,3 +460,22 @@ def test_device_copy_evaluates_as_the_host_set_and_takes_new_rows():
         dev.replace_rows(torch.tensor(ids), new)
         check()
     assert dev.coeffs.shape[1] == host.coeffs.shape[1] > 5
+
+
+def test_statistics_of_long_recordings_evaluate_in_passes_of_bounded_size(monkeypatch):
+    """60 rows of 200 s at dt 0.02 (600,600 samples): more than one pass allows, so two passes, with
+    the same statistics as one row per pass."""
+    from lasmp.envs.trajectories import stats as S
+
+    t = np.linspace(0.0, 200.0, 41)
+    poses = np.zeros((60, len(t), 6))
+    poses[:, :, 0] = 0.05 * t * np.linspace(0.5, 1.5, 60)[:, None]
+    traj = T.from_samples(t, poses)
+    sizes = []
+    evaluate = type(traj).evaluate
+    monkeypatch.setattr(
+        type(traj), "evaluate", lambda self, *a: sizes.append(len(a[0])) or evaluate(self, *a)
+    )
+    st = T.statistics(traj)
+    assert len(sizes) == 2 and max(sizes) <= S._CHUNK_SAMPLES
+    assert st == T.statistics(traj, chunk=1)

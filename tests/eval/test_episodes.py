@@ -209,6 +209,20 @@ def test_reading_a_missing_or_corrupt_episodes_csv_names_the_file_and_the_proble
         ep.read_csv(bad)
 
 
+def test_a_record_with_an_episode_in_two_rows_or_a_broken_episode_number_is_refused(tmp_path):
+    path = tmp_path / "episodes.csv"
+    ep.write_csv(path, table())
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join([*lines, lines[3]]) + "\n")  # episode 2 pasted again at the end
+    with pytest.raises(ep.EpisodesFileError, match=r"episode 2 appears 2 times \(rows 4, 8\)") as err:
+        ep.read_csv(path)
+    assert str(err.value).startswith(f"{path}: ") and "\n" not in str(err.value)
+    for bad in ("1.5", "-1"):
+        path.write_text("\n".join([lines[0], bad + lines[1][1:]]) + "\n")
+        with pytest.raises(ep.EpisodesFileError, match="row 2: the episode must be a whole number >= 0"):
+            ep.read_csv(path)
+
+
 def test_breakdown_counts_collisions_by_n_tilt_cause_forced_and_late_failures():
     b = bd.breakdown(table(), late_s=8.0)
     assert b["episodes"] == 6 and b["collisions"] == 3
@@ -278,10 +292,13 @@ def test_breakdown_of_the_first_k_episodes_counts_only_those_and_refuses_a_k_the
     assert bd.main([str(tmp_path), "--episodes", "4"]) == 0
     assert capsys.readouterr().out.startswith("4 episodes, 1 collisions (rate 0.250).")
     assert bd.main([str(tmp_path), "--episodes", "7"]) == 2
-    assert "first 7 episodes, the file has 6" in capsys.readouterr().err
+    assert (
+        f"{tmp_path / 'episodes.csv'}: asked for the first 7 episodes, the file has 6"
+        in capsys.readouterr().err
+    )
     with pytest.raises(SystemExit):
         bd.main([str(tmp_path), "--episodes", "0"])
-    assert "--episodes must be >= 1" in capsys.readouterr().err
+    assert "--episodes: must be an integer >= 1, got '0'" in capsys.readouterr().err
 
 
 def test_the_probe_columns_of_one_run_serve_another_run_of_the_same_episodes_and_other_episodes_are_refused(

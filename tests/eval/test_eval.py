@@ -224,6 +224,9 @@ def test_evaluate_stand_still_end_to_end(tmp_path):
     assert out.returncode == 0, out.stderr[-2000:]
     result = json.loads((tmp_path / "ev" / "metrics.json").read_text())
     assert result["num_episodes"] == 16
+    # what it was measured with: the seed, the benchmark file's hash, no checkpoint
+    assert result["seed"] == 0 and result["benchmark_sha256"] == sha256(bench_path)
+    assert result["checkpoint"] is None and result["checkpoint_sha256"] is None
     for key in (
         "collision_rate",
         "height_violation_rate",
@@ -246,6 +249,12 @@ def test_evaluate_stand_still_end_to_end(tmp_path):
     assert all(c for c in rows["collision_cause"][collided]) and not any(rows["collision_cause"][~collided])
     assert np.all(np.isfinite(rows["platform_tilt_max_rad"])) and set(np.unique(rows["forced"])) <= {0.0, 1.0}
     assert result["forced_episodes"] == int(rows["forced"].sum())
+
+
+def sha256(path) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def strict_load(path):
@@ -311,7 +320,11 @@ def test_evaluate_fails_at_once_on_an_unwritable_output_directory(tmp_path):
     assert "Traceback" not in out.stderr and "episodes" not in out.stderr
 
 
-def test_the_default_output_directory_differs_for_the_same_checkpoint_name_of_two_runs(tmp_path):
+def test_the_default_output_directory_is_one_per_checkpoint_file_even_where_names_repeat(tmp_path):
+    """E27: results/study/lasmp/seed0/policy_449.pt and results/study/lasmp_centre/seed0/policy_449.pt
+    have the same run-directory and file names; their default directories still differ. The same
+    file always lands in the same place, however it is named on the command line."""
+    import hashlib
     from types import SimpleNamespace
 
     from lasmp.eval.outdir import default_out_dir
@@ -319,18 +332,26 @@ def test_the_default_output_directory_differs_for_the_same_checkpoint_name_of_tw
     def out_dir(checkpoint, controller=None):
         return default_out_dir(SimpleNamespace(checkpoint=checkpoint, controller=controller), Path("eval"))
 
-    a = out_dir(str(tmp_path / "runs" / "seed0" / "model_449.pt"))
-    b = out_dir(str(tmp_path / "runs" / "seed1" / "model_449.pt"))
-    assert a == Path("eval/seed0/model_449") and b == Path("eval/seed1/model_449")
+    def run_hash(run):
+        return hashlib.sha256(str(run.resolve()).encode()).hexdigest()[:8]
+
+    study = tmp_path / "results" / "study"
+    a = out_dir(str(study / "lasmp" / "seed0" / "policy_449.pt"))
+    b = out_dir(str(study / "lasmp_centre" / "seed0" / "policy_449.pt"))
+    assert a != b
+    assert a == Path(f"eval/seed0-{run_hash(study / 'lasmp' / 'seed0')}/policy_449")
+    assert out_dir(str(study / "lasmp" / "seed0" / ".." / "seed0" / "policy_449.pt")) == a
+    assert out_dir(str(study / "lasmp" / "seed0" / "policy_450.pt")).parent == a.parent  # one run, one folder
     assert out_dir(None, "stand_still") == Path("eval/stand_still")
-    assert out_dir(str(tmp_path / "rs_run" / "model_9.pt"), "rs_oracle") == Path(
-        "eval/rs_run/model_9_rs_oracle"
+    rs = tmp_path / "rs_run"
+    assert out_dir(str(rs / "model_9.pt"), "rs_oracle") == Path(
+        f"eval/rs_run-{run_hash(rs)}/model_9_rs_oracle"
     )
     run = tmp_path / "runs" / "seed2"
     run.mkdir(parents=True)
     for k in (9, 10):
         (run / f"model_{k}.pt").write_text("")
-    assert out_dir(str(run)) == Path("eval/seed2/model_10")  # a run directory: its latest checkpoint
+    assert out_dir(str(run)) == Path(f"eval/seed2-{run_hash(run)}/model_10")  # a run directory: its latest
 
 
 def test_metrics_json_writes_missing_values_as_null(tmp_path):
@@ -483,6 +504,11 @@ def test_evaluate_lasmp_checkpoint_reports_estimator_accuracy_and_plots(tmp_path
     )
     assert out.returncode == 0, out.stderr[-2000:]
     result = json.loads((tmp_path / "ev" / "metrics.json").read_text())
+    from lasmp.algo.checkpoint import latest_checkpoint
+
+    latest = latest_checkpoint(tmp_path / "mp")  # the run directory's latest checkpoint: the file evaluated
+    assert result["checkpoint"] == str(latest) and result["checkpoint_sha256"] == sha256(latest)
+    assert result["benchmark_sha256"] == sha256(bench_path) and result["seed"] == 0
     est = result["estimator"]
     assert len(est["x_exp_mean_abs_error"]) == 13 and est["l_imp_mean_l2_error"] > 0
     assert est["samples"] >= 6
@@ -621,4 +647,5 @@ def test_evaluate_refuses_a_thread_count_below_one(capsys):
 
     with pytest.raises(SystemExit) as exit_info:
         cli.main(["--controller", "stand_still", "--torch-threads", "0"])
-    assert exit_info.value.code == 2 and "--torch-threads must be >= 1, got 0" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and "--torch-threads: must be an integer >= 1, got '0'" in err

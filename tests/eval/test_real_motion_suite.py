@@ -2,6 +2,7 @@
 
 import csv
 import gzip
+import hashlib
 import json
 from pathlib import Path
 
@@ -127,6 +128,13 @@ def test_evaluate_suite_end_to_end(tmp_path, small_bench, capsys):
     assert rc == 0
     result = json.loads((out / "metrics.json").read_text())
     assert result["suite"] == "real_motion" and result["num_episodes"] == 4
+    # what it was measured with, as evaluate.py's benchmark results record it
+    assert (
+        result["seed"] == 0
+        and result["benchmark_sha256"] == hashlib.sha256(small_bench.read_bytes()).hexdigest()
+    )
+    assert result["checkpoint"] is None and result["checkpoint_sha256"] is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["suite"]  # no lock or staging directory left
     assert result["platform_drive"] == "close" and result["duration_s"] == DEFAULT_DURATION_S
     assert list(result["scenarios"]) == QUICK
     for name in QUICK:

@@ -4,7 +4,9 @@ the env that trained the policy and the torch policy itself."""
 
 from __future__ import annotations
 
+import hashlib
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -15,13 +17,14 @@ from omegaconf import OmegaConf
 from lasmp.algo.checkpoint import read_checkpoint
 from lasmp.deploy import load_deploy_env, obs_window
 from lasmp.envs.robot import OBS_DIM
-from lasmp.modules.export import METADATA_VERSION, read_onnx_metadata
+from lasmp.modules.export import METADATA_VERSION, SIDECAR_HASH_KEY, read_onnx_metadata
 from lasmp.play import main
 from lasmp.robots import a1
 from lasmp.train import train
 
 # not the defaults (20, 0.25, 4): the metadata must come from the checkpoint's config
 HISTORY_LENGTH, ACTION_SCALE, DECIMATION = 12, 0.3, 5
+DOC = Path(__file__).resolve().parents[2] / "docs" / "deploy.md"
 
 
 @pytest.fixture(scope="module")
@@ -46,8 +49,8 @@ def run_dir(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def exported(run_dir, tmp_path_factory) -> Path:
-    """The directory `play.py --export onnx` wrote."""
-    out = tmp_path_factory.mktemp("export_onnx")
+    """The directory `play.py --export onnx` wrote, `deploy/` as in docs/deploy.md."""
+    out = tmp_path_factory.mktemp("export_onnx") / "deploy"
     args = ["--checkpoint", str(run_dir), "--steps", "0", "--export", "onnx", "--out", str(out)]
     assert main(args) == 0
     return out
@@ -77,7 +80,12 @@ def test_export_writes_the_model_and_a_json_sidecar_holding_the_same_metadata(ex
     onnx = pytest.importorskip("onnx")
     props = onnx.load(str(exported / "policy.onnx")).metadata_props
     assert all(isinstance(p.value, str) for p in props)  # ONNX holds strings: each value is JSON
-    assert meta == json.loads((exported / "policy.json").read_text())
+    sidecar = json.loads((exported / "policy.json").read_text())
+    # the sidecar ties itself to the exact bytes of its ONNX file (docs/deploy.md's loader checks it)
+    assert (
+        sidecar.pop(SIDECAR_HASH_KEY) == hashlib.sha256((exported / "policy.onnx").read_bytes()).hexdigest()
+    )
+    assert meta == sidecar
     assert meta["metadata_version"] == METADATA_VERSION and meta["lasmp_version"]
 
 
@@ -186,3 +194,30 @@ def test_onnx_model_on_a_recorded_window_matches_the_torch_policy(exported, load
     normalized = (window.numpy() - np.float32(norm["mean"])) / (np.float32(norm["std"]) + norm["eps"])
     (other,) = sess.run(None, {meta["input_name"]: normalized.astype(np.float32)})
     assert not np.allclose(other, expected, atol=1e-3)
+
+
+def documented_loop(export_dir: Path, monkeypatch) -> dict:
+    """The namespace of docs/deploy.md's Python block, run as written beside `export_dir` (deploy/)."""
+    (code,) = re.findall(r"^```python\n(.*?)^```", DOC.read_text(), re.S | re.M)
+    monkeypatch.chdir(export_dir.parent)
+    namespace = {"__name__": "deploy_md"}
+    exec(compile(code, str(DOC), "exec"), namespace)
+    return namespace
+
+
+def test_the_documented_loop_builds_the_simulators_window_and_sends_the_simulators_targets(
+    exported, run_dir, monkeypatch
+):
+    ns = documented_loop(exported, monkeypatch)
+    env, policy, _, _ = load_deploy_env(run_dir, num_envs=1, seed=7)  # a fresh episode: the loop starts
+    act = env.index.joint_act.numpy()
+    obs = env.get_observations()
+    for _ in range(6):
+        sent = ns["control_step"](obs["policy"][0].numpy())
+        np.testing.assert_array_equal(ns["window"], obs_window(obs).numpy())
+        with torch.inference_mode():
+            obs, _, dones, _ = env.step(policy(obs))
+        assert not dones.any()  # one episode: the window is never restarted
+        # the target the simulator's PD tracks, from the torch policy's action
+        np.testing.assert_allclose(sent, env.sim.ctrl[0, act].cpu().numpy(), rtol=0, atol=1e-5 * ACTION_SCALE)
+        np.testing.assert_allclose(ns["last_action"], obs["policy"][0, -12:].numpy(), rtol=0, atol=1e-5)

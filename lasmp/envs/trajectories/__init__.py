@@ -18,6 +18,8 @@ Files (:mod:`.fileformat`)
     ``.npz``, format "lasmp-trajectories" version 2, written by :func:`save`, read by
     :func:`load`: generated sets as their waypoints and construction, user-made sets as their
     samples. A malformed file or user-made trajectory raises :class:`TrajectoryFileError`.
+    Every ``.npz`` reader (:func:`read_npz`, the benchmark file's too) checks each member's size
+    from its header before loading it (:func:`check_npz_members`, at most ``MAX_NPZ_BYTES``).
 
 Statistics (:mod:`.stats`)
     :func:`statistics`: path length, speed, acceleration, angular rate and curvature, per N.
@@ -31,6 +33,8 @@ from lasmp.envs.trajectories.cli import main
 from lasmp.envs.trajectories.fileformat import (
     FORMAT_NAME,
     FORMAT_VERSION,
+    MAX_NPZ_BYTES,
+    check_npz_members,
     check_version,
     load,
     read_npz,
@@ -71,6 +75,7 @@ __all__ = [
     "INTERPOLATING",
     "KIND_NAMES",
     "MAX_DEGREE",
+    "MAX_NPZ_BYTES",
     "POSE_NAMES",
     "SAMPLES",
     "STAT_COLUMNS",
@@ -81,6 +86,7 @@ __all__ = [
     "TrajectoryFileError",
     "TrajectoryRanges",
     "angular_rate",
+    "check_npz_members",
     "check_version",
     "from_samples",
     "load",

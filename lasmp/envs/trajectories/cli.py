@@ -3,7 +3,11 @@
 ``stats`` prints :func:`~lasmp.envs.trajectories.stats.statistics` (a table, or ``--json``),
 ``plot`` draws example paths and per-N statistics to a PNG, ``generate`` writes a sampled set to
 a trajectory file; each samples a set of a split (``--split --num --seed --kind --degree``) or,
-for ``stats`` and ``plot``, reads one (``--file``).
+for ``stats`` and ``plot``, reads one (``--file``; the sampling options then are refused, not ignored).
+
+The file ``plot`` or ``generate`` writes (``--out``) is checked before any sampling (its extension,
+its directory, and that it replaces no file without ``--force``) and written whole or not at all;
+a write that fails is one line naming it (exit 1).
 """
 
 from __future__ import annotations
@@ -11,13 +15,26 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 
+from lasmp.atomic import atomic_open
 from lasmp.envs.trajectories.fileformat import load, save
 from lasmp.envs.trajectories.generate import ranges_for_split, sample
-from lasmp.envs.trajectories.splines import DEFAULT_DEGREE, GENERATED_KINDS, PiecewisePoly, SplineSpec
+from lasmp.envs.trajectories.splines import (
+    DEFAULT_DEGREE,
+    GENERATED_KINDS,
+    MAX_DEGREE,
+    PiecewisePoly,
+    SplineSpec,
+)
 from lasmp.envs.trajectories.stats import print_table, statistics
+from lasmp.inputs import check_out_file, float_arg, int_arg, seed_arg
+
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+# what a sampled set is drawn with, and its defaults (--num's is per command): with --file, none applies
+SAMPLING = {"split": "test", "seed": 0, "kind": "approximating", "degree": DEFAULT_DEGREE}
 
 
 def _traj_from_args(args) -> PiecewisePoly:
@@ -60,7 +77,8 @@ def _plot(traj: PiecewisePoly, stats: dict, out: str, dt_s: float) -> None:
         ax.bar(keys, [stats["per_n"][k][col] for k in keys])
         ax.set(xlabel="N waypoints", ylabel=lab, title=f"{lab} per N")
     fig.tight_layout()
-    fig.savefig(out, dpi=90)
+    with atomic_open(out) as f:
+        fig.savefig(f, dpi=90, format=Path(out).suffix[1:].lower())
     plt.close(fig)
 
 
@@ -73,45 +91,71 @@ def main(argv=None) -> int:
     sub = ap.add_subparsers(dest="cmd", required=True)
 
     def common(p, num):
-        p.add_argument("--split", choices=("train", "test"), default="test")
-        p.add_argument("--num", type=int, default=num)
-        p.add_argument("--seed", type=int, default=0)
-        p.add_argument("--kind", choices=GENERATED_KINDS, default="approximating", help="spline construction")
-        p.add_argument("--degree", type=int, default=DEFAULT_DEGREE, help="approximating B-spline degree")
+        # defaults None, filled in below: an option given with --file is refused, not ignored
+        p.add_argument("--split", choices=("train", "test"), help="default test")
+        p.add_argument("--num", type=int_arg(1), help=f"default {num}")
+        p.add_argument("--seed", type=seed_arg, help="default 0")
+        p.add_argument("--kind", choices=GENERATED_KINDS, help="spline construction (default approximating)")
+        p.add_argument(
+            "--degree",
+            type=int_arg(3, MAX_DEGREE),
+            help=f"approximating B-spline degree (default {DEFAULT_DEGREE})",
+        )
+        p.set_defaults(default_num=num)
 
     ps = sub.add_parser("stats", help="path length / speed / curvature, overall and per N")
     common(ps, 10000)
     ps.add_argument("--file", help="use a saved trajectory file instead of sampling")
-    ps.add_argument("--dt", type=float, default=0.02, help="sampling step, s")
+    ps.add_argument("--dt", type=float_arg(0.0, open_lo=True), default=0.02, help="sampling step, s")
     ps.add_argument("--json", action="store_true", help="print one JSON object only")
     pp = sub.add_parser("plot", help="example paths and per-N statistics to a PNG")
     common(pp, 200)
     pp.add_argument("--file", help="use a saved trajectory file instead of sampling")
-    pp.add_argument("--dt", type=float, default=0.02)
-    pp.add_argument("--out", required=True)
+    pp.add_argument("--dt", type=float_arg(0.0, open_lo=True), default=0.02, help="sampling step, s")
+    pp.add_argument("--out", required=True, help=f"the figure ({' or '.join(PLOT_SUFFIXES)})")
+    pp.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     pg = sub.add_parser("generate", help="sample a set and write it to a file")
     common(pg, 10000)
-    pg.add_argument("--out", required=True)
+    pg.add_argument("--out", required=True, help="the trajectory file (.npz)")
+    pg.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     args = ap.parse_args(argv)
-    if getattr(args, "num", 1) < 1:
-        ap.error("--num must be >= 1")
-    if getattr(args, "dt", 1.0) <= 0:
-        ap.error("--dt must be > 0")
+    given = [f"--{k}" for k in ("num", *SAMPLING) if getattr(args, k) is not None]
+    if getattr(args, "file", None) and given:
+        ap.error(
+            f"give --file or the sampling options ({', '.join(given)}), not both: a saved set is read as it is"
+        )
+    args.num = args.default_num if args.num is None else args.num
+    for key, default in SAMPLING.items():
+        setattr(args, key, default if getattr(args, key) is None else getattr(args, key))
     try:
+        if args.cmd != "stats":  # the file it writes, checked before any sampling
+            suffixes = PLOT_SUFFIXES if args.cmd == "plot" else (".npz",)
+            check_out_file(args.out, suffixes=suffixes, force=args.force, option="--out")
         traj = _traj_from_args(args)
-    except ValueError as exc:  # a bad file (TrajectoryFileError) or construction
+    except ValueError as exc:  # InputError, a bad file (TrajectoryFileError) or construction
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("interrupted" + ("" if args.cmd == "stats" else f": {args.out} not written"), file=sys.stderr)
+        return 130
     if args.cmd == "stats":
         st = statistics(traj, args.dt)
         if args.json:
             print(json.dumps(st))
         else:
             print_table(st)
-    elif args.cmd == "plot":
-        _plot(traj, statistics(traj, args.dt), args.out, args.dt)
-        print(f"wrote {args.out}", file=sys.stderr)
-    else:
-        save(args.out, traj, meta={"split": args.split, "seed": args.seed, "num": args.num})
-        print(f"wrote {len(traj)} trajectories to {args.out}", file=sys.stderr)
+        return 0
+    try:
+        if args.cmd == "plot":
+            _plot(traj, statistics(traj, args.dt), args.out, args.dt)
+            print(f"wrote {args.out}", file=sys.stderr)
+        else:
+            save(args.out, traj, meta={"split": args.split, "seed": args.seed, "num": args.num})
+            print(f"wrote {len(traj)} trajectories to {args.out}", file=sys.stderr)
+    except OSError as err:  # AtomicWriteError (a full disk, ...): it names the file, left as it was
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"interrupted: {args.out} not written", file=sys.stderr)
+        return 130
     return 0

@@ -27,6 +27,7 @@ in the "waypoints" layout.
 from __future__ import annotations
 
 import json
+import math
 import os
 import warnings
 import zipfile
@@ -52,6 +53,9 @@ PHYSICAL_RANGE = {
     "acceleration": ("m/s^2", 150.0, 1e3),
     "angular acceleration": ("rad/s^2", 150.0, 1e3),
 }
+# the most memory the arrays of one .npz file may take (check_npz_members): 100 times Xi_eval's 10,000
+# trajectories; a user-made set of 10,000 rows sampled every 0.02 s over 10 s takes 230 MiB
+MAX_NPZ_BYTES = 2**30
 _PEAK_POINTS = np.linspace(0.0, 1.0, 3)  # where each polynomial piece is evaluated: ends and middle
 
 
@@ -149,15 +153,78 @@ def save(path, traj: PiecewisePoly, meta: dict | None = None) -> None:
         np.savez(f, **arrays)  # a file object: savez appends no ".npz"
 
 
-def read_npz(path: str, error: type[Exception]):
-    """Read every array of an .npz file; return `get(key, optional=False)`, which raises `error` naming
-    the file and a missing key (or returns None for a missing optional one). An unreadable or
-    non-.npz file raises `error` too."""
+def _human(nbytes: int) -> str:
+    return f"{nbytes / 2**30:.1f} GiB" if nbytes >= 2**30 else f"{nbytes / 2**20:.1f} MiB"
+
+
+def _member_header(f) -> tuple[tuple[int, ...], np.dtype, int]:
+    """(shape, dtype, header length) of the .npy array an open zip member starts with, from its header
+    alone (numpy's own readers; headers over 10,000 bytes are refused by them)."""
+    version = np.lib.format.read_magic(f)
+    if version == (1, 0):
+        shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+    elif version == (2, 0):
+        shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+    else:  # 3.0 (a utf-8 header): numpy's reader of it is private (numpy 2: in _format_impl)
+        impl = getattr(np.lib, "_format_impl", np.lib.format)
+        shape, _, dtype = impl._read_array_header(f, version)
+    return tuple(int(n) for n in shape), dtype, f.tell()
+
+
+def check_npz_members(path: str, error: type[Exception], max_bytes: int = MAX_NPZ_BYTES) -> None:
+    """Raise `error` unless `path` is a zip archive whose members, read from their headers only, fit
+    in `max_bytes` of memory together. Why: np.load allocates the shape an array's header declares
+    and inflates a compressed member in full, so a file of 8 MB can hold an 8 GiB array of zeros
+    (it took `trajectories stats` 37 s and 8 GiB); here nothing is inflated beyond the headers, and
+    a member whose size disagrees with its header (truncated, or a header that lies) is refused."""
     try:
-        z = np.load(path, allow_pickle=False)
-        if not isinstance(z, np.lib.npyio.NpzFile):  # a plain .npy array
-            raise error(f"{path}: not an .npz archive (it holds a single .npy array)")
-        with z:
+        with zipfile.ZipFile(path) as zf:
+            total, largest = 0, ("", 0, "")
+            for info in zf.infolist():
+                with zf.open(info) as f:
+                    if f.read(6) == b"\x93NUMPY":
+                        f.seek(0)
+                        shape, dtype, header = _member_header(f)
+                        nbytes = math.prod(shape) * dtype.itemsize
+                        what = f"{dtype} array of shape {shape}"
+                    else:  # np.load returns any other member as its bytes
+                        header, nbytes, what = 0, info.file_size, "member"
+                if nbytes > largest[1]:
+                    largest = (info.filename.removesuffix(".npy"), nbytes, what)
+                total += nbytes
+                if total > max_bytes:
+                    name, size, kind = largest
+                    raise error(
+                        f"{path}: its arrays would take more than {_human(max_bytes)} in memory ({name!r}: a "
+                        f"{kind}, {_human(size)}): refused before loading them. A corrupt or hostile "
+                        "file? (Xi_eval's 10,000 trajectories take 10 MiB)"
+                    )
+                if header and info.file_size != header + nbytes:
+                    raise error(
+                        f"{path}: member {info.filename!r} holds {info.file_size} bytes, but its header "
+                        f"declares a {what} ({header + nbytes} bytes): truncated or corrupt"
+                    )
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
+        if isinstance(exc, error):
+            raise
+        raise error(f"{path}: not a readable .npz archive (truncated or corrupt?): {exc}") from None
+
+
+def read_npz(path: str, error: type[Exception], max_bytes: int = MAX_NPZ_BYTES):
+    """Read every array of an .npz file, each checked from its header first (check_npz_members); return
+    `get(key, optional=False)`, which raises `error` naming the file and a missing key (or returns
+    None for a missing optional one). An unreadable or non-.npz file raises `error` too. Every .npz
+    reader (trajectory and benchmark files) goes through here."""
+    try:
+        with open(path, "rb") as f:
+            single = f.read(6) == b"\x93NUMPY"
+    except OSError as exc:
+        raise error(f"{path}: cannot be read: {exc.strerror or exc}") from None
+    if single:
+        raise error(f"{path}: not an .npz archive (it holds a single .npy array)")
+    check_npz_members(path, error, max_bytes)
+    try:
+        with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
         raise error(f"{path}: not a readable .npz archive (truncated or corrupt?): {exc}") from None
@@ -228,6 +295,8 @@ def waypoints_from_arrays(get, path: str, error: type[Exception]) -> PiecewisePo
 def load(path) -> PiecewisePoly:
     """Read and validate a trajectory file; any problem raises TrajectoryFileError naming file and problem."""
     path = os.fspath(path)
+    if os.path.exists(path) and not os.path.isfile(path):  # a FIFO would block, /dev/zero never end
+        raise TrajectoryFileError(f"{path}: not a regular file; give a trajectory file (.npz)")
     if not os.path.isfile(path):
         raise TrajectoryFileError(f"{path}: no such trajectory file")
     get = read_npz(path, TrajectoryFileError)

@@ -11,6 +11,7 @@ import numpy as np
 
 from lasmp.envs.trajectories.splines import PiecewisePoly
 
+_CHUNK_SAMPLES = 500_000  # samples of one evaluation pass: ~70 MB of positions, velocities, accelerations
 _SLOW_MPS = 0.05  # curvature is not sampled below this speed (it diverges where the path stops)
 
 
@@ -31,6 +32,10 @@ def _samples(traj: PiecewisePoly, dt_s: float, chunk: int):
     rows_out = {k: np.full(m, np.nan) for k in ("length", "max_speed")}
     pooled = {k: [] for k in ("acc", "omega", "curv", "row_acc", "row_curv")}
     dur = traj.duration_s
+    # rows per pass: at most `chunk`, and few enough that one pass evaluates at most _CHUNK_SAMPLES
+    # samples (a set of long user-made recordings would otherwise take gigabytes per pass)
+    longest = int(np.floor(float(dur.max(initial=0.0)) / dt_s + 1e-9)) + 1
+    chunk = max(1, min(chunk, _CHUNK_SAMPLES // longest))
     for lo in range(0, m, chunk):
         rows = np.arange(lo, min(lo + chunk, m))
         ns = int(np.floor(dur[rows].max() / dt_s + 1e-9)) + 1

@@ -1,4 +1,9 @@
-"""``python -m lasmp.eval.real_motion {generate,plot,stats}``: the suite's file, figures and numbers."""
+"""``python -m lasmp.eval.real_motion {generate,plot,stats,table}``: the suite's file, figures and numbers.
+
+The files ``generate`` and ``plot`` write are checked before any motion is built (extension,
+directory, and no existing file replaced without ``--force``); a write that fails is one line
+naming the file (exit 1).
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,7 @@ from pathlib import Path
 from lasmp.envs import trajectories as trj
 from lasmp.eval.real_motion import suite as rm
 from lasmp.eval.real_motion.plots import plot_all
+from lasmp.inputs import check_out_file
 from lasmp.motions.motion import to_trajectories
 
 
@@ -17,9 +23,11 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m lasmp.eval.real_motion", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
     g = sub.add_parser("generate", help="write the suite's motions as one 'samples' trajectory file")
-    g.add_argument("--out", type=Path, default=Path("benchmarks") / "real_motion.npz")
+    g.add_argument("--out", type=Path, default=Path("benchmarks") / "real_motion.npz", help="an .npz file")
     pl = sub.add_parser("plot", help="one PNG per scenario: pose, acceleration, angular rate")
-    pl.add_argument("--out", type=Path, default=Path("docs") / "figures" / "real_motion")
+    pl.add_argument("--out", type=Path, default=Path("docs") / "figures" / "real_motion", help="a directory")
+    for q in (g, pl):
+        q.add_argument("--force", action="store_true", help="overwrite the files --out already holds")
     st = sub.add_parser("stats", help="per scenario: RMS and peak acceleration and angular rate, excursions")
     st.add_argument("--json", action="store_true")
     for q in (g, pl, st):
@@ -37,28 +45,51 @@ def main(argv=None) -> int:
             print(f"error: {err}", file=sys.stderr)
             return 2
         return 0
-    try:
+    try:  # the files it writes, checked before the motions are built (seconds of work)
+        if args.cmd == "generate":
+            check_out_file(args.out, suffixes=(".npz",), force=args.force, option="--out")
+        elif args.cmd == "plot":
+            for name in args.scenarios or rm.SCENARIOS:  # plot_all's file names
+                path = args.out / f"{name}.png"
+                check_out_file(path, suffixes=(".png",), force=args.force, option="--out")
         motions = rm.build_motions(args.scenarios)
-    except ValueError as err:
+    except ValueError as err:  # InputError, an unknown scenario
         print(f"error: {err}", file=sys.stderr)
         return 2
-    if args.cmd == "generate":
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        trj.save(args.out, to_trajectories(motions))
-        print(f"wrote {len(motions)} scenarios to {args.out}")
-    elif args.cmd == "plot":
-        for path in plot_all(motions, args.out):
-            print(path)
-    else:
-        stats = {m.name: rm.motion_summary(m) for m in motions}
-        if args.json:
-            print(json.dumps(stats, indent=2))
+    except KeyboardInterrupt:
+        print("interrupted: nothing written", file=sys.stderr)
+        return 130
+    if args.cmd == "stats":
+        print_stats(motions, args.json)
+        return 0
+    try:
+        if args.cmd == "generate":
+            trj.save(args.out, to_trajectories(motions))  # atomic; it makes the directory
+            print(f"wrote {len(motions)} scenarios to {args.out}")
         else:
-            keys = list(next(iter(stats.values())))
-            print("| scenario | " + " | ".join(keys) + " |\n|---|" + "---|" * len(keys))
-            for name, s in stats.items():
-                print(f"| {name} | " + " | ".join(f"{s[k]:.3f}" for k in keys) + " |")
+            for path in plot_all(motions, args.out):
+                print(path)
+    except OSError as err:  # AtomicWriteError (a full disk, ...), a figure that cannot be saved: named
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(
+            f"interrupted: {args.out} {'not written' if args.cmd == 'generate' else 'incomplete'}",
+            file=sys.stderr,
+        )
+        return 130
     return 0
+
+
+def print_stats(motions, as_json: bool) -> None:
+    stats = {m.name: rm.motion_summary(m) for m in motions}
+    if as_json:
+        print(json.dumps(stats, indent=2))
+    else:
+        keys = list(next(iter(stats.values())))
+        print("| scenario | " + " | ".join(keys) + " |\n|---|" + "---|" * len(keys))
+        for name, s in stats.items():
+            print(f"| {name} | " + " | ".join(f"{s[k]:.3f}" for k in keys) + " |")
 
 
 if __name__ == "__main__":

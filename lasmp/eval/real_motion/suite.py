@@ -35,6 +35,7 @@ from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.domain_rand import Intrinsics
 from lasmp.eval.benchmark import episode_draws
 from lasmp.eval.metrics import ALL_METRICS, EPISODE_KEY, METRICS, summarize
+from lasmp.eval.report import inputs_line
 from lasmp.motions.motion import Motion, derivatives, to_trajectories
 
 SUITE_NAME = "real_motion"
@@ -165,6 +166,32 @@ def per_scenario(episodes: SuiteEpisodes, per_episode: dict[str, np.ndarray]) ->
     return out
 
 
+def suite_result(method, episodes, motions, run, tracking, drive, benchmark, inputs) -> dict:
+    """The suite's metrics.json, as evaluate.py's: the method, its inputs (`inputs`: the seed and
+    the SHA-256 of the robots' benchmark file and of the checkpoint), then per scenario and overall
+    (`run`: `run_benchmark`'s), the platform's tracking and the reference motions."""
+    per_episode = run["episodes"]
+    result = {
+        "method": method,
+        "suite": SUITE_NAME,
+        "benchmark_robots": str(benchmark),
+        **inputs,
+        "robots_per_scenario": episodes.robots_per_scenario,
+        "duration_s": max(m.duration_s for m in motions),
+        "platform_drive": drive,
+        "platform_drive_overrides": PLATFORM_DRIVES[drive],
+        "num_episodes": episodes.num_episodes,
+        "scenarios": per_scenario(episodes, per_episode),
+        "overall": summarize(per_episode, len(episodes.names)),
+        "platform_tracking": tracking,
+        "reference_motion": {m.name: motion_summary(m) for m in motions},
+        "wall_time_s": run["wall_time_s"],
+    }
+    if "estimator" in run:
+        result["estimator"] = run["estimator"]
+    return result
+
+
 EPISODE_COLUMNS = (
     "episode",
     "scenario",
@@ -253,7 +280,7 @@ def markdown(result: dict) -> str:
                 f"| {name} | {t['reference_acc_rms_mps2']:.3f} | {t['platform_acc_rms_mps2']:.3f} | "
                 f"{t['translation_error_rms_m']:.4f} | {t['rotation_error_rms_rad']:.4f} |"
             )
-    lines += ["", f"Wall time: {result['wall_time_s']:.1f} s.", ""]
+    lines += ["", *inputs_line(result), f"Wall time: {result['wall_time_s']:.1f} s.", ""]
     return "\n".join(lines)
 
 

@@ -45,3 +45,18 @@ def gl():
     except Exception as err:  # no EGL/OSMesa library, no device, ...
         pytest.skip(f"no offscreen OpenGL with MUJOCO_GL={os.environ.get('MUJOCO_GL')}: {err}")
     pytest.importorskip("imageio_ffmpeg")
+
+
+@pytest.fixture(autouse=True)
+def default_signal_handlers():
+    """Every test starts with Python's own SIGINT and SIGTERM handling, and leaves it so: a training
+    run in this process installs its stop handlers, and a test that ends mid-run could leave them (or
+    an ignored SIGINT, which subprocesses inherit) to the Ctrl-C tests that follow."""
+    import signal
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    yield
+    for s, handler in saved.items():
+        signal.signal(s, handler if handler is not None else signal.SIG_DFL)

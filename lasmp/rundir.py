@@ -150,7 +150,10 @@ def claim(run_dir: str | Path, check: Callable[[Path], None]) -> Iterator[Path]:
     made = _make_dirs(run_dir)
     lock = RunLock(run_dir)
     try:
-        lock.acquire()
+        try:
+            lock.acquire()
+        except OSError as err:  # a full disk cannot take the lock's PID: name the file
+            raise RunDirError(f"cannot write {lock.path}: {err.strerror or err}") from None
         try:
             check(run_dir)
             stale = remove_stale_temporaries(run_dir)

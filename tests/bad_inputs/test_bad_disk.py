@@ -124,3 +124,15 @@ def test_a_run_directory_turned_read_only_mid_run_reports_the_failed_save_not_th
     assert len(lines) == 1 and "Read-only file system" in lines[0], err[-3000:]
     assert lines[0].startswith(f"error: cannot write {run}/model_"), lines[0]
     assert list(run.glob("model_*.pt"))  # the checkpoints saved before are kept
+
+
+def test_a_disk_with_no_byte_left_names_the_run_lock_it_cannot_write_and_leaves_nothing(tmpfs):
+    """The careless rerun of F03: a disk already full to the last byte fails at the run's lock file
+    (its PID), before any check of the space; the line names that file, and the run directory made for
+    it is removed again."""
+    disk = tmpfs("64k")
+    _fill(disk)
+    run = disk / "run"
+    out = train(tiny(f"runner.log_dir={run}"))
+    refused(out, f"cannot write {run / '.lock'}", "No space left on device")
+    assert sorted(os.listdir(disk)) == ["filler"]

@@ -273,3 +273,18 @@ def _scale(key, value, index=(0,)):
 def remount(where: Path, read_only: bool) -> None:
     """Turn a tmpfs from the `tmpfs` fixture (conftest.py) read-only (or writable again) under a running command."""
     subprocess.run(["mount", "-o", f"remount,{'ro' if read_only else 'rw'}", str(where)], check=True)
+
+
+def evaluate(*argv: str) -> Outcome:
+    """evaluate.py's main in this process."""
+    from lasmp.eval import cli
+
+    return call(cli.main, list(argv))
+
+
+def stand_still(bench: Path, out: Path, *extra: str, probe: bool = False) -> Outcome:
+    """One Stand Still episode on one env of `bench` into `out`: the smallest whole evaluation (the
+    platform probe only with `probe`)."""
+    argv = ["--controller", "stand_still", "--benchmark", str(bench), "--num-trajectories", "1"]
+    argv += ["--batch-envs", "1", *([] if probe else ["--no-platform-probe"]), "--out", str(out)]
+    return evaluate(*argv, *extra)

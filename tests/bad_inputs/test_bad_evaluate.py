@@ -6,39 +6,16 @@ from __future__ import annotations
 import json
 import re
 import time
-from pathlib import Path
 
 import pytest
-from badkit import Outcome, _bench_case, _pose_far, _scale, _traj_case, _truncated, call, refused
+from badkit import _bench_case, _pose_far, _scale, _traj_case, _truncated, evaluate, refused, stand_still
 from testkit import hostile_checkpoint
 
 
 # -- evaluation inputs and outputs ---------------------------------------------------------------
-def evaluate(*argv: str) -> Outcome:
-    from lasmp.eval import cli
-
-    return call(cli.main, list(argv))
-
-
-def _stand_still(bench: Path, out_dir: Path, *extra: str) -> Outcome:
-    return evaluate(
-        "--controller",
-        "stand_still",
-        "--benchmark",
-        str(bench),
-        "--num-trajectories",
-        "1",
-        "--batch-envs",
-        "1",
-        "--out",
-        str(out_dir),
-        *extra,
-    )
-
-
 def test_evaluate_refuses_a_benchmark_robot_with_negative_friction_before_playing(tmp_path):
     bench = _bench_case(_scale("robot_foot_friction", -1.0))(tmp_path / "bench.npz")
-    out = _stand_still(bench, tmp_path / "eval")
+    out = stand_still(bench, tmp_path / "eval", probe=True)
     refused(out, "robot_foot_friction")
     assert not (tmp_path / "eval").exists()  # no results of NaN, not even an empty directory
 
@@ -68,7 +45,7 @@ def test_evaluate_refuses_a_bad_checkpoint_with_one_message(base_run, tmp_path, 
 def test_evaluate_refuses_a_bad_trajectory_file_with_one_message(tmp_path):
     bench = _bench_case(lambda a: None)(tmp_path / "bench.npz")
     traj = _traj_case("samples", _pose_far)(tmp_path / "traj.npz")
-    out = _stand_still(bench, tmp_path / "eval", "--trajectories", str(traj))
+    out = stand_still(bench, tmp_path / "eval", "--trajectories", str(traj), probe=True)
     refused(out, "traj.npz", "physical range")
 
 
@@ -76,7 +53,7 @@ def test_evaluate_refuses_an_output_path_that_is_a_file_before_playing(tmp_path)
     bench = _bench_case(lambda a: None)(tmp_path / "bench.npz")
     (tmp_path / "eval").write_text("mine")
     started = time.monotonic()
-    out = _stand_still(bench, tmp_path / "eval")
+    out = stand_still(bench, tmp_path / "eval", probe=True)
     refused(out, "eval")
     assert (tmp_path / "eval").read_text() == "mine"
     assert time.monotonic() - started < 20  # before the episode, not after it
@@ -87,7 +64,7 @@ def test_evaluate_never_overwrites_an_earlier_result_silently(tmp_path):
     earlier = tmp_path / "eval"
     earlier.mkdir()
     (earlier / "metrics.json").write_text(json.dumps({"method": "earlier"}))
-    out = _stand_still(bench, earlier)
+    out = stand_still(bench, earlier, probe=True)
     assert (earlier / "metrics.json").read_text() == json.dumps({"method": "earlier"})
     if out.code != 0:
         refused(out, "metrics.json|eval")

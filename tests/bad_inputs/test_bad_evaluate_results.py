@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from badkit import Outcome, _bench_case, call, files, refused, succeeded
+from badkit import Outcome, _bench_case, call, evaluate, files, refused, stand_still, succeeded
 
 from lasmp.eval import breakdown as bd
 from lasmp.eval import cli
@@ -20,31 +20,9 @@ from lasmp.eval import episodes as ep
 from lasmp.eval import outdir as od
 
 
-def evaluate(*argv: str) -> Outcome:
-    return call(cli.main, list(argv))
-
-
 @pytest.fixture
 def bench(tmp_path) -> Path:
     return _bench_case(lambda a: None)(tmp_path / "bench.npz")
-
-
-def stand_still(bench: Path, out: Path, *extra: str) -> Outcome:
-    """One Stand Still episode on one env, without the probe: the smallest whole evaluation."""
-    return evaluate(
-        "--controller",
-        "stand_still",
-        "--benchmark",
-        str(bench),
-        "--num-trajectories",
-        "1",
-        "--batch-envs",
-        "1",
-        "--no-platform-probe",
-        "--out",
-        str(out),
-        *extra,
-    )
 
 
 def during_the_run(monkeypatch, action) -> None:

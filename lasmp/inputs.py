@@ -11,11 +11,14 @@ was tested by truthiness). Here each rule is written once and every command uses
 - `check_out_file`: the path a command will write, checked before any work: its extension, that it
   does not replace an existing file without --force, and that its directory exists (or can be made)
   and is writable. It creates nothing, so a refused command leaves nothing behind.
+- `missing_dirs`, `file_sha256`: what the writers record about a path: the directories writing it
+  creates (removed again when the command fails), and a file's hash (results name their inputs).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import math
 import os
 from pathlib import Path
@@ -113,3 +116,23 @@ def check_out_file(path: str | os.PathLike, *, suffixes: tuple[str, ...], force:
         raise InputError(f"{path} already exists: choose another {option}, or pass --force to overwrite it")
     _writable_dir(path)
     return path
+
+
+def missing_dirs(path: str | os.PathLike) -> list[Path]:
+    """The directories of `path` and its parents that do not exist yet, outermost first: what
+    `path.mkdir(parents=True)` creates (a dangling symlink counts as existing)."""
+    missing = []
+    for p in (Path(path), *Path(path).parents):
+        if p.exists() or p.is_symlink():
+            break
+        missing.append(p)
+    return missing[::-1]
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """The hex sha256 of the file at `path`, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()

@@ -48,7 +48,6 @@ Make it::
 from __future__ import annotations
 
 import argparse
-import hashlib
 import io
 import json
 import os
@@ -63,6 +62,7 @@ from lasmp.config import DomainRandCfg
 from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, sample_intrinsics
 from lasmp.inputs import InputError, check_out_file, check_seed, int_arg, seed_arg
+from lasmp.inputs import file_sha256 as sha256
 
 FORMAT_NAME = "lasmp-benchmark"
 FORMAT_VERSION = 2  # 2: approximating B-splines, the construction recorded (spline, spline_degree)
@@ -285,14 +285,6 @@ def _check_regenerates(path, get, seed: int, num_trajectories: int, num_robots: 
                 f"lasmp.eval.benchmark generate --seed {seed} --num-trajectories {num_trajectories} "
                 f"--num-robots {num_robots} --out {path} --force"
             )
-
-
-def sha256(path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def describe(path, bench: Benchmark) -> dict:

@@ -35,6 +35,7 @@ from pathlib import Path
 from lasmp.algo.checkpoint import latest_checkpoint
 from lasmp.eval import episodes as ep
 from lasmp.eval.report import atomic_write_text, dumps
+from lasmp.inputs import file_sha256, missing_dirs
 from lasmp.rundir import LOCK_NAME, RunLock
 
 METRICS_FILE = "metrics.json"  # written last: a directory with one holds a whole result
@@ -78,15 +79,6 @@ class ResultWriteError(OSError):
         return f"cannot write {self.filename}: {self.strerror} ({self.left})"
 
 
-def sha256_file(path: str | os.PathLike) -> str:
-    """The file's SHA-256, hex (read in 1 MiB blocks)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def checkpoint_file(checkpoint: str | os.PathLike | None) -> Path | None:
     """The file a --checkpoint names: itself, or a run directory's latest checkpoint (None: none)."""
     if checkpoint is None:
@@ -121,16 +113,6 @@ class _Lock(RunLock):
             f"{self.shown} is being written by another evaluation or training (PID {holder}): wait "
             "for it to end, or give another --out"
         )
-
-
-def _missing_dirs(path: Path) -> list[Path]:
-    """The directories of `path` and its parents that do not exist yet, outermost first."""
-    missing = []
-    for p in (path, *path.parents):
-        if p.exists() or p.is_symlink():
-            break
-        missing.append(p)
-    return missing[::-1]
 
 
 @contextmanager
@@ -191,7 +173,7 @@ class ResultDir:
         inside = self.real.is_dir()
         where = self.real if inside else self.real.parent
         try:
-            self._made = _missing_dirs(where)
+            self._made = missing_dirs(where)
             where.mkdir(parents=True, exist_ok=True)
             lock = where / (LOCK_NAME if inside else f".{self.real.name}{LOCK_NAME}")
             self._lock = _Lock(lock, self.shown)
@@ -300,11 +282,11 @@ def claim_out(args, root: Path, claimed: list) -> ResultDir:
 def provenance(args, checkpoint: Path | None, bench_file: Path) -> dict:
     """What the result was measured with: the seed and the SHA-256 of the benchmark (or the suite's
     robots) file and of the checkpoint file, so a result can be tied to its inputs."""
-    out = {"seed": args.seed, "benchmark_sha256": sha256_file(bench_file)}
+    out = {"seed": args.seed, "benchmark_sha256": file_sha256(bench_file)}
     if getattr(args, "trajectories", None) is not None:
-        out["trajectories_sha256"] = sha256_file(args.trajectories)
+        out["trajectories_sha256"] = file_sha256(args.trajectories)
     out["checkpoint"] = None if checkpoint is None else str(checkpoint)
-    out["checkpoint_sha256"] = None if checkpoint is None else sha256_file(checkpoint)
+    out["checkpoint_sha256"] = None if checkpoint is None else file_sha256(checkpoint)
     return out
 
 

@@ -3,7 +3,6 @@ in `policy.py`) and the metadata that travels with it, what a robot runtime need
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import warnings
@@ -11,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from lasmp.atomic import atomic_open, atomic_write_with
+from lasmp.inputs import file_sha256
 from lasmp.robots import a1
 
 if TYPE_CHECKING:
@@ -200,15 +200,6 @@ def write_onnx(module, path: str | Path) -> None:
             )
     finally:
         registry.setLevel(level)
-
-
-def file_sha256(path: str | Path) -> str:
-    """The hex sha256 of the file at `path`, read in 1 MiB blocks."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def sidecar_text(metadata: dict, onnx_sha256: str) -> str:

@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 
 from lasmp.atomic import AtomicWriteError
-from lasmp.inputs import check_out_file
+from lasmp.inputs import check_out_file, missing_dirs
 from lasmp.modules.export import export_policy
 
 EXPORT_FILES = ("policy.onnx", "policy.json")  # what --export onnx writes into --out
@@ -47,7 +47,9 @@ class Outputs:
         self.written: list[Path] = []
         self.steps: int | None = None  # policy steps played (None: the rollout has not started)
         self.total_steps: int | None = None
-        self.new_dirs = sorted({d for p in wanted for d in _missing_dirs(p)}, key=lambda d: -len(d.parts))
+        self.new_dirs = sorted(
+            {d for p in wanted for d in missing_dirs(p.parent)}, key=lambda d: -len(d.parts)
+        )
 
     def remove_new_empty_dirs(self) -> None:
         for d in self.new_dirs:  # deepest first
@@ -68,11 +70,6 @@ class Outputs:
         line = f"interrupted {when}: wrote {', '.join(map(str, self.written))}"
         missing = [str(p) for p in self.wanted if p not in self.written]
         return line + (f"; not written: {', '.join(missing)}" if missing else "")
-
-
-def _missing_dirs(path: Path) -> list[Path]:
-    """The ancestors of `path` that do not exist yet: what writing it creates."""
-    return [d for d in path.absolute().parents if not d.exists()]
 
 
 def export_into(policy, out_dir: Path, metadata: dict) -> list[Path]:

@@ -126,8 +126,10 @@ def test_one_process_refuses_a_two_process_checkpoint_unless_told_to_restart_the
     assert again.returncode == 0, again.stderr[-2000:]
 
 
-def _long_two_process_run(run: Path, save_interval: int) -> subprocess.Popen:
-    """A tiny two-process torchrun of 500 iterations into `run`, its output piped (stopped by the test)."""
+def _long_two_process_run(run: Path, save_interval: int, monitor_s: float | None = None) -> subprocess.Popen:
+    """A tiny two-process torchrun of 500 iterations into `run`, its output piped (stopped by the test).
+    `monitor_s`: torchrun's --monitor-interval, how soon its agent terminates the other ranks once one
+    has died (its default, a fraction of a second, can end the survivor before it has said anything)."""
     args = [
         "train.py",
         "env.num_envs=4",
@@ -140,7 +142,16 @@ def _long_two_process_run(run: Path, save_interval: int) -> subprocess.Popen:
         "torch_threads=1",
         f"runner.log_dir={run}",
     ]
-    cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2", *args]
+    monitor = [] if monitor_s is None else [f"--monitor-interval={monitor_s}"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "torch.distributed.run",
+        "--standalone",
+        "--nproc_per_node=2",
+        *monitor,
+        *args,
+    ]
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT)
 
 
@@ -247,7 +258,7 @@ def test_a_killed_rank_leaves_the_other_saying_what_happened_and_how_to_resume(t
     closed by peer`); it must end with one message naming the newest checkpoint and the resume
     command, not with the collective's traceback."""
     run = tmp_path / "run"
-    proc = _long_two_process_run(run, save_interval=2)
+    proc = _long_two_process_run(run, save_interval=2, monitor_s=30)
     try:
         _wait_for_iteration(proc, 3)
         pids = _rank_pids(proc.pid)

@@ -8,7 +8,9 @@
   `TrainingFaulted` during its rollout, before its update, naming the cause.
 - Interruption: SIGINT (Ctrl-C) or SIGTERM during `learn` lets the current iteration finish, writes
   `model_<it>.pt` and raises `TrainingInterrupted` (the caller prints the resume command). A second
-  signal exits at once (`SystemExit`, code 128 + signal: 130 / 143), without a checkpoint.
+  signal exits at once (`SystemExit`, code 128 + signal: 130 / 143), without a checkpoint. A rank of
+  a torchrun job that leaves `learn` on an exception ignores both signals from then on: the process
+  is ending, and its report must not be cut by torchrun's agent terminating the ranks left.
 - Where the fault guard and the interruption fire: inside rsl_rl's `OnPolicyRunner.learn`, from
   its logger (`OneLineLogger`).
   The loop calls `logger.process_env_step` after every env-step of a rollout (then `_check_faults`)
@@ -254,6 +256,13 @@ class LasmpRunner(OnPolicyRunnerCompat):
         self._faults_before = getattr(self.env, "fault_count", 0)
         try:
             super().learn(num_learning_iterations, init_at_random_ep_len)
+        except BaseException:
+            if self.is_distributed and previous:
+                # this rank ends (stopped, or a peer lost): torchrun's agent, seeing a rank gone,
+                # sends the others SIGTERM within a fraction of a second; ignored from here, so that
+                # the rank's one-line report (train.main) is said whole and it exits with its own code
+                previous = dict.fromkeys(previous, signal.SIG_IGN)
+            raise
         finally:
             for s, handler in previous.items():
                 signal.signal(s, handler)

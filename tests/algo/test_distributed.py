@@ -126,10 +126,8 @@ def test_one_process_refuses_a_two_process_checkpoint_unless_told_to_restart_the
     assert again.returncode == 0, again.stderr[-2000:]
 
 
-def _long_two_process_run(run: Path, save_interval: int, monitor_s: float | None = None) -> subprocess.Popen:
-    """A tiny two-process torchrun of 500 iterations into `run`, its output piped (stopped by the test).
-    `monitor_s`: torchrun's --monitor-interval, how soon its agent terminates the other ranks once one
-    has died (its default, a fraction of a second, can end the survivor before it has said anything)."""
+def _long_two_process_run(run: Path, save_interval: int) -> subprocess.Popen:
+    """A tiny two-process torchrun of 500 iterations into `run`, its output piped (stopped by the test)."""
     args = [
         "train.py",
         "env.num_envs=4",
@@ -142,14 +140,12 @@ def _long_two_process_run(run: Path, save_interval: int, monitor_s: float | None
         "torch_threads=1",
         f"runner.log_dir={run}",
     ]
-    monitor = [] if monitor_s is None else [f"--monitor-interval={monitor_s}"]
     cmd = [
         sys.executable,
         "-m",
         "torch.distributed.run",
         "--standalone",
         "--nproc_per_node=2",
-        *monitor,
         *args,
     ]
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT)
@@ -255,10 +251,11 @@ def _rank_pids(agent: int) -> dict[int, int]:
 @pytest.mark.parametrize("victim", [1, 0])
 def test_a_killed_rank_leaves_the_other_saying_what_happened_and_how_to_resume(tmp_path, victim):
     """D04 / D05: SIGKILL to one rank mid-run. The other's next collective fails (gloo: `Connection
-    closed by peer`); it must end with one message naming the newest checkpoint and the resume
-    command, not with the collective's traceback."""
+    closed by peer`), and torchrun's agent sends it SIGTERM a fraction of a second after the kill; it
+    must end with one message naming the newest checkpoint and the resume command, not with the
+    collective's traceback nor cut by the SIGTERM."""
     run = tmp_path / "run"
-    proc = _long_two_process_run(run, save_interval=2, monitor_s=30)
+    proc = _long_two_process_run(run, save_interval=2)  # torchrun's default monitor interval
     try:
         _wait_for_iteration(proc, 3)
         pids = _rank_pids(proc.pid)
@@ -279,3 +276,6 @@ def test_a_killed_rank_leaves_the_other_saying_what_happened_and_how_to_resume(t
     assert "torchrun --nproc_per_node=2 train.py" in rest and f"resume={newest}" in rest
     # torchrun's own ChildFailedError summary remains; no traceback of the worker's
     assert "Connection closed by peer" not in rest and "lasmp/train.py" not in rest, rest[-4000:]
+    # the agent terminates the survivor as soon as it sees the victim gone: the survivor still ends
+    # with its own exit code 1, its report whole, not by that SIGTERM
+    assert "Signal 15 (SIGTERM) received" not in rest and "exitcode  : 1 " in rest, rest[-4000:]

@@ -131,6 +131,11 @@ class AlgoCfg:
     use_mixed_precision: bool | None = None
     compile_mlps: bool | None = None
     symmetry_cfg: SymmetryCfg = field(default_factory=SymmetryCfg)
+    # (ours; the paper does not say) an episode cut by its time limit, not by a fall, adds γ·V(s_T)
+    # to its last reward (rsl_rl's truncation bootstrap); false: the time limit ends the return as a
+    # fall does, a switch to measure what the bootstrap does to the late falls
+    # (docs/method.md#las-mp-the-options-that-depart-from-the-papers-recipe-ours-in-screening)
+    bootstrap_time_outs: bool = True
 
     def validate(self, p: str = "algo") -> None:
         for name in ("learning_rate", "clip_param", "estimator_learning_rate", "max_grad_norm"):

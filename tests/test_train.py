@@ -236,8 +236,9 @@ def test_fused_adam_option_builds_fused_optimizers_over_the_same_parameters(tmp_
     assert all(math.isfinite(v) for v in losses.values()) and changed(before, alg.get_policy(), "mlp")
 
 
-def test_time_outs_are_bootstrapped_and_terminations_are_not(tmp_path):
-    runner = make_runner(tiny(tmp_path), None)
+@pytest.mark.parametrize("bootstrap", [True, False])
+def test_time_outs_are_bootstrapped_unless_switched_off_and_terminations_never_are(tmp_path, bootstrap):
+    runner = make_runner(tiny(tmp_path, algo={"bootstrap_time_outs": bootstrap}), None)
     alg = runner.alg
     obs = runner.env.get_observations()
     with torch.inference_mode():
@@ -248,7 +249,8 @@ def test_time_outs_are_bootstrapped_and_terminations_are_not(tmp_path):
         extras = {"time_outs": torch.tensor([1, 0, 0, 0])}
         alg.process_env_step(obs, rewards, dones, extras)
     stored = alg.storage.rewards[0].squeeze(-1)
-    assert torch.allclose(stored[0], alg.gamma * values[0])  # truncation: bootstrapped with V(s)
+    # truncation: bootstrapped with V(s); switched off, the time limit ends the return like a fall
+    assert torch.allclose(stored[0], alg.gamma * values[0] if bootstrap else torch.tensor(0.0))
     assert stored[1] == 0.0 and stored[2] == 0.0  # termination and running env: reward only
     assert values[0].abs() > 0  # otherwise the check above proves nothing
 

@@ -116,6 +116,7 @@ class PPOROA(PPO):
         fused_adam: bool | None = None,
         compile_mlps: bool | None = None,
         symmetry_cfg: dict | None = None,
+        bootstrap_time_outs: bool = True,
         **kwargs,
     ) -> None:
         device = kwargs.get("device", "cpu")
@@ -141,6 +142,7 @@ class PPOROA(PPO):
             self._compile_networks()
         # the settings' ranges are checked once, by the training config (AlgoCfg.validate)
         self.roa_lambda = roa_lambda
+        self.bootstrap_time_outs = bootstrap_time_outs
         self.estimator_epochs = estimator_epochs
         self.estimate_rollout_every = estimate_rollout_every
         self.estimate_rollout_start = estimate_rollout_start
@@ -154,6 +156,13 @@ class PPOROA(PPO):
         self._rollout_estimates: torch.Tensor | None = None
         self._estimate_steps = 0
         self.iteration = 0
+
+    def process_env_step(self, obs, rewards, dones, extras) -> None:
+        """rsl_rl's record of one env-step; without `bootstrap_time_outs` it does not see the time-outs,
+        so a time limit ends the return like a fall (the env still reports them to the logger)."""
+        if not self.bootstrap_time_outs:
+            extras = {k: v for k, v in extras.items() if k != "time_outs"}
+        super().process_env_step(obs, rewards, dones, extras)
 
     def _symmetry_cfg(self, cfg: dict | None) -> dict | None:
         """rsl_rl's symmetry config from ours (`algo.symmetry_cfg`, with the env rsl_rl put in it): None

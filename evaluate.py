@@ -3,11 +3,9 @@
 import sys
 
 if __name__ == "__main__":
-    try:
-        from lasmp.eval.cli import main  # torch and the physics: seconds, in which Ctrl-C is likely
+    from lasmp.ctrl_c import quiet_ctrl_c
 
-        code = main()
-    except KeyboardInterrupt:  # before main() claimed anything (main reports its own)
-        print("interrupted: nothing written", file=sys.stderr)
-        code = 130
-    sys.exit(code)
+    quiet_ctrl_c()  # before torch and the physics load: a Ctrl-C then says one line (main reports its own)
+    from lasmp.eval.cli import main
+
+    sys.exit(main())

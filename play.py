@@ -6,6 +6,9 @@
 import sys
 
 if __name__ == "__main__":
+    from lasmp.ctrl_c import quiet_ctrl_c
+
+    quiet_ctrl_c()  # before torch and MuJoCo load: a Ctrl-C then says one line
     from lasmp.play import main
 
     sys.exit(main(sys.argv[1:]))

@@ -7,10 +7,14 @@ See cfg/config.yaml for the groups and lasmp/train_cfg.py for every key; lasmp/t
 import sys
 from pathlib import Path
 
-import hydra
+from lasmp.ctrl_c import quiet_ctrl_c
 
-from lasmp.hydra_cli import unknown_key_error
-from lasmp.train_cfg import register_configs
+quiet_ctrl_c()  # before torch and Hydra load: a Ctrl-C then says one line
+
+import hydra  # noqa: E402
+
+from lasmp.hydra_cli import unknown_key_error  # noqa: E402
+from lasmp.train_cfg import register_configs  # noqa: E402
 
 CONFIG_PATH, CONFIG_NAME = "cfg", "config"
 

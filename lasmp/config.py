@@ -67,6 +67,27 @@ def check_known_keys(cfg: Any, p: str = "") -> None:
             check_known_keys(value, f"{p}.{name}" if p else name)
 
 
+def check_finite_values(cfg: Any, p: str = "") -> None:
+    """Refuse NaN or an infinity in any number of `cfg` (nested dataclasses, lists, dicts), naming its
+    key: a range check such as `learning_rate <= 0` lets NaN through, and no setting here means
+    anything by an infinity."""
+    for f in fields(cfg):
+        _check_finite(getattr(cfg, f.name), f"{p}.{f.name}" if p else f.name)
+
+
+def _check_finite(value: Any, key: str) -> None:
+    if is_dataclass(value):
+        check_finite_values(value, key)
+    elif isinstance(value, Mapping):
+        for k, v in value.items():
+            _check_finite(v, f"{key}.{k}")
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            _check_finite(v, f"{key}[{i}]")
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise ConfigError(f"{key} must be a finite number, got {value}")
+
+
 @dataclass
 class SimCfg:
     dt_s: float = 0.005  # physics step (ours)
@@ -206,6 +227,7 @@ class BaseEnvCfg:
 
     def validate(self, p: str = "env"):
         check_known_keys(self, p)
+        check_finite_values(self, p)
         if self.num_envs < 1:
             raise ConfigError(f"{p}.num_envs must be >= 1, got {self.num_envs}")
         if self.backend not in ("cpu", "warp"):

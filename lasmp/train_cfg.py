@@ -19,7 +19,7 @@ from omegaconf import OmegaConf
 
 from lasmp.algo.precision import PRECISIONS
 from lasmp.algo.symmetry import supports_mirror
-from lasmp.config import ConfigError, build_env_cfg, check_known_keys
+from lasmp.config import ConfigError, build_env_cfg, check_finite_values, check_known_keys
 from lasmp.envs import registry
 from lasmp.envs.registry import env_schema
 from lasmp.inputs import InputError, check_seed
@@ -232,6 +232,7 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
     if not is_dataclass(cfg.env):
         raise ConfigError("env must be built with its task's schema (lasmp.train_cfg.to_train_cfg does it)")
     check_known_keys(cfg)  # a `+key=value` typo (Hydra appends it) or a misspelt attribute set in code
+    check_finite_values(cfg)  # NaN passes a range check written as a comparison
     try:  # one rule for every seed (lasmp.inputs): -1 or 2**64 would fail deep in numpy or torch
         check_seed(cfg.seed, "seed")
     except InputError as err:

@@ -13,6 +13,7 @@ from pathlib import Path
 from lasmp.algo.runner import LasmpRunner
 from lasmp.config import ConfigError
 from lasmp.envs import registry
+from lasmp.inputs import size_in_words
 from lasmp.rundir import RunDirError
 from lasmp.train_cfg import TrainCfg
 
@@ -85,13 +86,13 @@ def check_memory(cfg: TrainCfg, processes: int = 1) -> None:
     available, source = found
     measured = env_bytes(cfg)
     per_env = sum(measured.values())
-    parts = ", ".join(f"{name} {_size(n)}" for name, n in measured.items())
+    parts = ", ".join(f"{name} {size_in_words(n)}" for name, n in measured.items())
     if envs * per_env <= available:
         return
     ranks = f" x {processes} processes" if processes > 1 else ""
     raise ConfigError(
-        f"env.num_envs={cfg.env.num_envs}{ranks} cannot fit in memory: it needs at least {_size(envs * per_env)} "
-        f"({_size(per_env)} per env: {parts}; measured on one env), and {_size(available)} is available "
+        f"env.num_envs={cfg.env.num_envs}{ranks} cannot fit in memory: it needs at least {size_in_words(envs * per_env)} "
+        f"({size_in_words(per_env)} per env: {parts}; measured on one env), and {size_in_words(available)} is available "
         f"({source}). Give env.num_envs={max(available // (per_env * processes), 1):,} or fewer"
     )
 
@@ -105,19 +106,11 @@ def check_disk_space(runner: LasmpRunner, log_dir: Path) -> None:
     size = runner.checkpoint_size()
     if free < 2 * size + START_BYTES:
         raise RunDirError(
-            f"runner.log_dir={log_dir}: its disk has {_size(free)} free, and this run needs at least "
-            f"{_size(2 * size + START_BYTES)}: two checkpoints of at least {_size(size)} each (a save is written "
-            f"beside the previous one before it replaces or thins it) and about {_size(START_BYTES)} of config "
+            f"runner.log_dir={log_dir}: its disk has {size_in_words(free)} free, and this run needs at least "
+            f"{size_in_words(2 * size + START_BYTES)}: two checkpoints of at least {size_in_words(size)} each (a save is written "
+            f"beside the previous one before it replaces or thins it) and about {size_in_words(START_BYTES)} of config "
             "and TensorBoard files. Free space there, or give another runner.log_dir"
         )
 
 
 START_BYTES = 64 << 10
-
-
-def _size(n: int) -> str:
-    """Bytes in words: 1.5 GiB, 320 KiB."""
-    for unit, scale in (("TiB", 1 << 40), ("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)):
-        if n >= scale:
-            return f"{n / scale:.3g} {unit}" if n < 1000 * scale else f"{n / scale:.0f} {unit}"
-    return f"{n} B"

@@ -5,7 +5,16 @@ import os
 
 import pytest
 
-from lasmp.inputs import SEED_MAX, InputError, check_out_file, check_seed, float_arg, int_arg, seed_arg
+from lasmp.inputs import (
+    SEED_MAX,
+    InputError,
+    check_out_file,
+    check_seed,
+    float_arg,
+    int_arg,
+    seed_arg,
+    size_in_words,
+)
 
 
 @pytest.mark.parametrize("good", [0, 1, SEED_MAX, 7.0])
@@ -88,3 +97,10 @@ def test_a_read_only_directory_is_refused(tmp_path):
     ro.mkdir(mode=0o555)
     with pytest.raises(InputError, match="is not writable"):
         check_out_file(ro / "v.mp4", suffixes=(".mp4",), force=False, option="--video")
+
+
+def test_sizes_in_words_keep_three_digits():
+    # evaluate's refusal once read "8 KiB free ... need at least 8 KiB" (8,192 and 8,992 bytes)
+    assert size_in_words(8192) == "8 KiB" and size_in_words(8992) == "8.78 KiB"
+    assert size_in_words(999) == "999 B" and size_in_words(3 << 30) == "3 GiB"
+    assert size_in_words(5000 << 40) == "5000 TiB"

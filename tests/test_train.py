@@ -402,6 +402,13 @@ def test_invalid_training_config_names_the_field():
         to_train_cfg(OmegaConf.create({"algo": {"entropy_decay_iterations": -1}}))
     with pytest.raises(ConfigError, match="policy.use_alignment"):
         to_train_cfg(OmegaConf.create({"policy": {"explicit": "none"}}))
+    # NaN passes a comparison (`nan <= 0` is false): every number of the config must be finite
+    with pytest.raises(ConfigError, match=r"algo.learning_rate must be a finite number, got nan"):
+        to_train_cfg(OmegaConf.create({"algo": {"learning_rate": float("nan")}}))
+    with pytest.raises(ConfigError, match=r"env.rewards.weights.reg4_air_time must be a finite number"):
+        to_train_cfg(OmegaConf.create({"env": {"rewards": {"weights": {"reg4_air_time": float("-inf")}}}}))
+    with pytest.raises(ConfigError, match=r"env.init_state.yaw_range_rad\[1\] must be a finite number"):
+        to_train_cfg(OmegaConf.create({"env": {"init_state": {"yaw_range_rad": [0.0, float("nan")]}}}))
     with pytest.raises(Exception, match="num_env"):  # a typo: OmegaConf names the unknown key
         to_train_cfg(OmegaConf.create({"env": {"num_env": 8}}))
 

@@ -213,10 +213,13 @@ class LasmpRunner(OnPolicyRunnerCompat):
             )
 
     # -- interruption ------------------------------------------------------------------------------
-    REPEAT_WINDOW_S = 2.0  # a signal this soon after the first is its echo (torchrun sends SIGTERM twice)
+    # in a torchrun job, a signal this soon after the first is its echo (torchrun forwards SIGTERM twice,
+    # and a Ctrl-C reaches a rank from the terminal and from the agent); alone, every second one counts
+    REPEAT_WINDOW_S = 2.0
 
     def _on_signal(self, signum, _frame) -> None:
-        if self._signal is not None and time.monotonic() - self._signal_time_s < self.REPEAT_WINDOW_S:
+        echo = time.monotonic() - getattr(self, "_signal_time_s", 0.0) < self.REPEAT_WINDOW_S
+        if self._signal is not None and echo and getattr(self, "is_distributed", False):
             return
         if self._signal is not None:  # a second signal: stop now, without a checkpoint
             print(

@@ -35,7 +35,7 @@ from pathlib import Path
 from lasmp.algo.checkpoint import latest_checkpoint
 from lasmp.eval import episodes as ep
 from lasmp.eval.report import atomic_write_text, dumps
-from lasmp.inputs import file_sha256, missing_dirs
+from lasmp.inputs import file_sha256, missing_dirs, size_in_words
 from lasmp.rundir import LOCK_NAME, RunLock
 
 METRICS_FILE = "metrics.json"  # written last: a directory with one holds a whole result
@@ -201,8 +201,8 @@ class ResultDir:
         need = MIN_RESULT_BYTES + MIN_BYTES_PER_EPISODE * num_episodes
         if free < need:
             raise OutDirError(
-                f"cannot write results to {self.shown}: its disk has {free // 1024} KiB free, the results "
-                f"of {num_episodes} episodes need at least {need // 1024} KiB: free some space or give "
+                f"cannot write results to {self.shown}: its disk has {size_in_words(free)} free, the results "
+                f"of {num_episodes} episodes need at least {size_in_words(need)}: free some space or give "
                 "another --out"
             )
 

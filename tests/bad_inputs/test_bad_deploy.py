@@ -98,6 +98,12 @@ def test_the_sidecar_holds_the_sha256_of_the_onnx_file_and_the_documented_loader
     assert SIDECAR_HASH_KEY not in ns["meta"] and ns["meta"]["action_scale"] == 0.25
 
 
+@pytest.mark.parametrize("missing", ["policy.json", "policy.onnx"])
+def test_an_export_missing_one_of_its_two_files_is_refused_naming_it(deploy, missing):
+    (deploy / missing).unlink()
+    refused_by_loader(rf"deploy/{re.escape(missing)} is missing", "both files")
+
+
 def test_an_action_scale_edited_in_the_sidecar_is_refused_as_differing_from_the_onnx(deploy):
     edit(deploy, sidecar_values={"action_scale": 2.5})
     refused_by_loader(

@@ -102,20 +102,33 @@ def test_a_second_sigterm_exits_at_once_without_a_traceback(tmp_path):
     assert not list(run.glob("model_*.pt")) and not list(run.glob(".*.tmp"))
 
 
-def test_a_second_ctrl_c_exits_with_130_and_no_checkpoint(tmp_path):
-    """The same handler as SIGTERM's (test above), called as Python calls it on two Ctrl-C."""
+def test_a_quick_second_ctrl_c_exits_with_130_and_no_checkpoint(tmp_path):
+    """The same handler as SIGTERM's (test above), called as Python calls it on two Ctrl-C half a
+    second apart: alone, a process takes every second signal as one."""
     runner = LasmpRunner.__new__(LasmpRunner)  # the handler reads nothing but the signal state
-    runner._signal = None
+    runner._signal, runner.is_distributed = None, False
 
     def twice():
         runner._on_signal(signal.SIGINT, None)
-        runner._on_signal(signal.SIGINT, None)  # an echo at once (as torchrun forwards): ignored
-        assert runner._signal == signal.SIGINT
-        runner._signal_time_s -= LasmpRunner.REPEAT_WINDOW_S + 1.0  # a second Ctrl-C, later
         runner._on_signal(signal.SIGINT, None)
 
     out = call(twice)
     assert out.code == 130 and "Traceback" not in out.text and "SIGINT again" in out.text
+
+
+def test_a_torchrun_rank_takes_a_signal_at_once_after_the_first_as_its_echo(tmp_path):
+    runner = LasmpRunner.__new__(LasmpRunner)
+    runner._signal, runner.is_distributed = None, True
+
+    def twice():
+        runner._on_signal(signal.SIGTERM, None)
+        runner._on_signal(signal.SIGINT, None)  # an echo at once (torchrun forwards): ignored
+        assert runner._signal == signal.SIGTERM
+        runner._signal_time_s -= LasmpRunner.REPEAT_WINDOW_S + 1.0  # a second signal, later
+        runner._on_signal(signal.SIGTERM, None)
+
+    out = call(twice)
+    assert out.code == 143 and "Traceback" not in out.text and "SIGTERM again" in out.text
 
 
 def test_a_save_that_fails_leaves_no_temporary_file(tmp_path, monkeypatch):

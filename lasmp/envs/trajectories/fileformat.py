@@ -282,9 +282,12 @@ def waypoints_from_arrays(get, path: str, error: type[Exception]) -> PiecewisePo
         raise error(f"{path}: 'spline_degree' must be an integer scalar, got {degree.dtype} {degree.shape}")
     try:
         spec = SplineSpec(kind, int(degree))
-        nk = check_knots(t.astype(np.float64), p.astype(np.float64), path)
-    except ValueError as exc:  # TrajectoryFileError included
+    except ValueError as exc:
         raise error(f"{path}: {exc}") from None
+    try:
+        nk = check_knots(t.astype(np.float64), p.astype(np.float64), path)
+    except TrajectoryFileError as exc:  # its message names the file already
+        raise error(str(exc)) from None
     if np.any(nk != nw + 1):
         raise error(f"{path}: 'n_waypoints' disagrees with the number of knots (NaN padding) in some rows")
     traj = PiecewisePoly.from_knots(t, p, nk, spec.code, spec.degree, nw)

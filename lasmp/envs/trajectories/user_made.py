@@ -37,13 +37,7 @@ def check_knots(t: np.ndarray, p: np.ndarray, where: str) -> np.ndarray:
         raise TrajectoryFileError(f"{where}: a row has no knots")
     if not np.all(np.isfinite(t[valid])):
         raise TrajectoryFileError(f"{where}: times must be finite")
-    pv = p[valid]
-    if np.isnan(pv).any():
-        raise TrajectoryFileError(f"{where}: NaN in the poses")
-    if not np.all(np.isfinite(pv)):
-        raise TrajectoryFileError(f"{where}: poses must be finite")
-    if not np.all(np.isnan(p[~valid])):
-        raise TrajectoryFileError(f"{where}: poses present where the times are padding (NaN)")
+    # the times first: zeroed or shuffled times would otherwise show as NaN poses (the padding)
     if np.any(t[:, 0] != 0.0):
         raise TrajectoryFileError(
             f"{where}: times must start at 0 s (got first time {t[:, 0][t[:, 0] != 0][0]!r})"
@@ -51,6 +45,13 @@ def check_knots(t: np.ndarray, p: np.ndarray, where: str) -> np.ndarray:
     dt = np.diff(t, axis=1)
     if np.any(dt[valid[:, 1:]] <= 0.0):
         raise TrajectoryFileError(f"{where}: times must be strictly increasing")
+    pv = p[valid]
+    if np.isnan(pv).any():
+        raise TrajectoryFileError(f"{where}: NaN in the poses")
+    if not np.all(np.isfinite(pv)):
+        raise TrajectoryFileError(f"{where}: poses must be finite")
+    if not np.all(np.isnan(p[~valid])):
+        raise TrajectoryFileError(f"{where}: poses present where the times are padding (NaN)")
     if np.any(np.abs(p[:, 0]) > _START_TOL):
         bad = int(np.flatnonzero(np.any(np.abs(p[:, 0]) > _START_TOL, axis=1))[0])
         raise TrajectoryFileError(

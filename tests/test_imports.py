@@ -22,7 +22,7 @@ LAYERS = (
     ("lasmp.algo", "lasmp.envs"),
     ("lasmp.modules",),
     ("lasmp.robots", "lasmp.config", "lasmp.plainstate", "lasmp.rundir"),
-    ("lasmp.atomic", "lasmp.inputs"),
+    ("lasmp.atomic", "lasmp.inputs", "lasmp.ctrl_c"),
 )
 
 

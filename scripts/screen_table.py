@@ -23,13 +23,15 @@ def _fmt(x, f=".3f"):
     return "–" if x is None else format(x, f)
 
 
-def row(cand: str, seed_dir: Path) -> str:
+def row(cand: str, seed_dir: Path) -> str | None:
     m2000 = seed_dir / "metrics_2000.json"
     if m2000.exists():
         r = json.loads(m2000.read_text())
         coll = r["metrics"]["collision_rate"]["mean"]
         height = r["metrics"]["height_violation_rate"]["mean"]
         gait = r.get("gait") or {}
+    elif cand != "lasmp":  # trained only part of the way (a policy checkpoint kept): no row yet
+        return None
     else:  # the paper's recipe: the study's run of this seed
         rows = ep.read_csv(ep.episodes_path(STUDY / seed_dir.name))
         coll, height, gait = float(rows["collided"][:2000].mean()), None, {}
@@ -56,8 +58,10 @@ def main() -> None:
     )
     print("|---|---|---|---|---|---|---|---|---|")
     for cand_dir in sorted(p for p in SCREEN.iterdir() if p.is_dir()):
-        for seed_dir in sorted(cand_dir.glob("seed*")):
-            print(row(cand_dir.name, seed_dir))
+        for seed_dir in sorted(p for p in cand_dir.glob("seed*") if p.is_dir()):  # not seed<k>.commands
+            line = row(cand_dir.name, seed_dir)
+            if line:
+                print(line)
 
 
 if __name__ == "__main__":

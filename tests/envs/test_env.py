@@ -147,6 +147,49 @@ def test_foot_contacts_match_contact_forces():
     assert not r.foot_contact.any() and np.all(r.f_feet_w == 0.0)
 
 
+def test_on_a_rolled_deck_the_feet_loads_in_the_platform_frame_lean_downhill_and_the_margin_shrinks():
+    from lasmp.envs.moving_platform.rewards import support_margin_m
+
+    def margin_and_cop(roll_rad: float):
+        # facing the deck's +x: the roll tips the robot over its side, across the stance's narrow width
+        env = make(4, domain_rand={"enabled": False}, init_state={"yaw_range_rad": [0.0, 0.0]})
+
+        def tilt(ids):  # ramp the deck to `roll_rad` over 1 s, then hold it
+            poses = np.zeros((len(ids), 4, 6))
+            poses[:, 2:, 3] = roll_rad
+            poses[:, 1, 3] = roll_rad * 0.5
+            return trj.from_samples(np.array([0.0, 0.5, 1.0, 10.0]), poses), np.full(len(ids), -1)
+
+        env._next_trajectories = tilt
+        env.reset()
+        for _ in range(100):  # 2 s: the deck has reached its roll and the robot has settled
+            env.step(torch.zeros(4, 12))
+        r = env.readout
+        f_n = r.f_feet_p[:, :, 2]
+        cop_y = (f_n * r.p_feet_p[:, :, 1]).sum(dim=1) / f_n.sum(dim=1)
+        total_mass = env.sim.model.body_subtreemass[env.sim.model.body("trunk").id]
+        # at rest, the feet carry the weight: (0, 0, m g) in the world, seen in the deck's frame as it
+        # stands (its roll, as the drive holds it under the robot's load); rolled, partly along its +y
+        weight_p = torch.einsum(
+            "nji,j->ni", r.r_wp, torch.tensor([0.0, 0.0, total_mass * G], dtype=r.r_wp.dtype)
+        )
+        np.testing.assert_allclose(r.f_feet_p.sum(dim=1), weight_p, atol=0.03 * total_mass * G)
+        deck_roll = torch.atan2(r.r_wp[:, 2, 1], r.r_wp[:, 2, 2])
+        assert (torch.abs(deck_roll - roll_rad) < 0.1).all(), deck_roll
+        # the feet stand on the deck's top, in its frame
+        np.testing.assert_allclose(r.p_feet_p[:, :, 2], env.plf_top_m + a1.FOOT_RADIUS_M, atol=0.01)
+        return support_margin_m(r.p_feet_p, r.f_feet_p, r.foot_contact), cop_y
+
+    level_margin, level_cop_y = margin_and_cop(0.0)
+    rolled_margin, rolled_cop_y = margin_and_cop(0.25)
+    # a positive roll lifts the deck's +y side: the CoP moves to -y, downhill, nearer the feet's edge
+    assert (rolled_cop_y < level_cop_y - 0.03).all(), (level_cop_y, rolled_cop_y)
+    assert (level_margin > 0.08).all() and (rolled_margin < level_margin - 0.03).all(), (
+        level_margin,
+        rolled_margin,
+    )
+
+
 def test_reset_clears_the_previous_contacts_of_the_reset_envs_only():
     """A reset env starts with no previous contact; the previous contacts are the env's own buffer,
     not a view of the step's readout, whose reset rows are written anew with the envs' new state."""

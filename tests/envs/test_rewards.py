@@ -46,6 +46,8 @@ def make_state(n: int = N, dt_s: float = 0.02, **overrides) -> StepState:
         t_air_running_s=z(4),
         at_time_limit=torch.zeros(n, dtype=torch.bool),
         v_slip_p=z(4, 2),
+        p_feet_p=z(4, 3),
+        f_feet_p=z(4, 3),
         collision=torch.zeros(n, dtype=torch.bool),
     )
     fields.update(overrides)
@@ -83,6 +85,8 @@ def test_every_term_shape_and_sign_on_random_state(name):
     ):
         setattr(s, f, torch.randn(getattr(s, f).shape, generator=g))
     s.f_feet_w = 100 * torch.randn(N, 4, 3, generator=g)
+    s.p_feet_p = RECTANGLE_P + 0.02 * torch.randn(N, 4, 3, generator=g)
+    s.f_feet_p = 100 * torch.randn(N, 4, 3, generator=g).abs()
     for f in ("contact", "touchdown", "liftoff"):
         setattr(s, f, torch.rand(N, 4, generator=g) > 0.5)
     s.collision = torch.tensor([True, False, True])
@@ -93,11 +97,15 @@ def test_every_term_shape_and_sign_on_random_state(name):
         assert out.tolist() == [1.0, 0.0, 1.0]
     elif name.startswith("task"):  # exp(-distance / sigma) kernels: in (0, 1], < 1 off target
         assert ((out > 0) & (out < 1)).all(), out
+    elif name.startswith("ours_"):  # our bonuses are fractions
+        assert ((out >= 0) & (out <= 1)).all() and (out > 0).any(), out
     else:  # penalties are magnitudes: >= 0, and > 0 somewhere on a random state
         assert (out >= 0).all() and (out > 0).any(), out
     w = DEFAULT_REWARD_WEIGHTS[name]
-    # task1..4 are bonuses, everything else a penalty
-    assert (w > 0) == (name.startswith("task") and name != "task0_collision")
+    if name.startswith("ours_"):  # our own terms are off by default: the paper's recipe
+        assert w == 0.0
+    else:  # task1..4 are bonuses, everything else a penalty
+        assert (w > 0) == (name.startswith("task") and name != "task0_collision")
 
 
 def test_task0_collision():
@@ -255,9 +263,71 @@ def test_reg6_foot_slip_only_feet_in_contact():
 # ---- manager ----------------------------------------------------------------------------
 
 
+# four feet at the corners of a 0.36 m x 0.26 m rectangle on the deck (LEG_NAMES order: FR, FL, RR, RL)
+RECTANGLE_P = torch.tensor([[0.18, -0.13, 0.1], [0.18, 0.13, 0.1], [-0.18, -0.13, 0.1], [-0.18, 0.13, 0.1]])
+
+
+def _stance(loads_n, contact=None, n: int = 1) -> StepState:
+    """The feet on RECTANGLE_P pressed with normal forces `loads_n` (FR, FL, RR, RL), N."""
+    f = torch.zeros(n, 4, 3)
+    f[:, :, 2] = torch.as_tensor(loads_n, dtype=torch.float32)
+    c = f[:, :, 2] > 0 if contact is None else torch.as_tensor(contact).expand(n, 4)
+    return make_state(n=n, p_feet_p=RECTANGLE_P.expand(n, 4, 3).clone(), f_feet_p=f, contact=c)
+
+
+def test_the_support_margin_of_four_evenly_loaded_feet_is_half_the_stance_width():
+    s = _stance([30.0, 30.0, 30.0, 30.0])
+    close(R.support_margin_m(s.p_feet_p, s.f_feet_p, s.contact), [0.13])
+    close(R.ours_support_margin(s, RewardsCfg(support_margin_ref_m=0.2)), [0.65])
+    close(R.ours_support_margin(s, P), [1.0])  # clipped at support_margin_ref_m = 0.1 m
+
+
+def test_the_support_margin_shrinks_as_the_load_moves_onto_one_side():
+    # 90 N on each left foot, 10 N on each right one: the CoP sits 0.13 * 80/100 m left of the centre
+    s = _stance([10.0, 90.0, 10.0, 90.0])
+    close(R.support_margin_m(s.p_feet_p, s.f_feet_p, s.contact), [0.13 - 0.104])
+    # all of it on the left feet: the CoP is on the left edge, where the robot tips
+    s = _stance([1e-6, 100.0, 1e-6, 100.0])
+    assert float(R.support_margin_m(s.p_feet_p, s.f_feet_p, s.contact)) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_three_feet_give_less_margin_than_four_so_the_term_pays_for_the_fourth():
+    # RL up: the triangle FR, FL, RR, evenly loaded; the CoP is its centroid, whose distance to a side is
+    # 2 * area / (3 * side); the nearest side is the diagonal FL-RR
+    s = _stance([30.0, 30.0, 30.0, 0.0])
+    diagonal = math.hypot(0.36, 0.26)
+    expected = 2 * (0.5 * 0.36 * 0.26) / (3 * diagonal)
+    close(R.support_margin_m(s.p_feet_p, s.f_feet_p, s.contact), [expected])
+    four = float(R.ours_support_margin(_stance([30.0] * 4), P))
+    three = float(R.ours_support_margin(s, P))
+    assert three == pytest.approx(expected / 0.1) and three < four
+
+
+@pytest.mark.parametrize("loads", [[50.0, 50.0, 0.0, 0.0], [0.0, 0.0, 0.0, 80.0], [0.0] * 4])
+def test_fewer_than_three_loaded_feet_have_no_support_margin(loads):
+    s = _stance(loads)
+    assert float(R.ours_support_margin(s, P)) == 0.0
+
+
+def test_a_foot_not_in_contact_carries_no_load_whatever_its_force_reads():
+    # RL reads a force but is flagged in the air: the triangle's margin, not the rectangle's
+    s = _stance([30.0, 30.0, 30.0, 30.0], contact=[True, True, True, False])
+    three = _stance([30.0, 30.0, 30.0, 0.0])
+    close(R.ours_support_margin(s, P), R.ours_support_margin(three, P))
+
+
+def test_the_support_margin_is_the_same_for_a_mirrored_stance():
+    s = _stance([20.0, 50.0, 35.0, 10.0])
+    mirrored = _stance([50.0, 20.0, 10.0, 35.0])  # left and right loads swapped
+    close(
+        R.support_margin_m(mirrored.p_feet_p, mirrored.f_feet_p, mirrored.contact),
+        R.support_margin_m(s.p_feet_p, s.f_feet_p, s.contact),
+    )
+
+
 def test_default_weight_keys_match_registry():
     assert set(DEFAULT_REWARD_WEIGHTS) == set(REWARD_TERMS)
-    assert len(REWARD_TERMS) == 15
+    assert len(REWARD_TERMS) == 16  # the paper's 15 atomic terms and ours_support_margin
 
 
 def test_default_params():
@@ -381,3 +451,9 @@ def test_the_terms_read_the_rewards_config_with_h_des_in_the_platform_frame():
     p[1, 2] = 0.67
     out = REWARD_TERMS["task4_height"](make_state(p_body_p=p), terms)
     close(out, [1.0, math.exp(-1.0), 1.0])
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.1, math.nan])
+def test_a_support_margin_reference_that_is_not_a_positive_length_is_refused_by_name(bad):
+    with pytest.raises(ConfigError, match="support_margin_ref_m"):
+        RewardsCfg(support_margin_ref_m=bad).validate("env.rewards")

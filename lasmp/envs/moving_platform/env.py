@@ -204,6 +204,8 @@ class MovingPlatformEnv(BaseEnv):
             "q_dot",
             "f_feet_w",
             "v_slip_p",
+            "p_feet_p",
+            "f_feet_p",
         )
         state = StepState(
             dt_s=dt,

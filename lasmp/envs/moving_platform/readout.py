@@ -40,6 +40,8 @@ class SceneReadout(RobotReadout):
     omega_plf_b: torch.Tensor  # (n, 3)
     u_aln: torch.Tensor  # (n, 3)
     v_slip_p: torch.Tensor  # (n, 4, 2) foot velocity relative to the platform surface point under it, xy in p
+    p_feet_p: torch.Tensor  # (n, 4, 3) foot sites in the platform frame, m
+    f_feet_p: torch.Tensor  # (n, 4, 3) contact force ON each foot, platform frame, N
 
 
 class SceneIndex(RobotIndex):
@@ -97,4 +99,6 @@ def read_scene(sim, ix: SceneIndex, rows: torch.Tensor | None = None) -> SceneRe
         omega_plf_b=omega_plf_b,
         u_aln=u_aln,
         v_slip_p=v_slip_p,
+        p_feet_p=rotate_inv(r_wp, p_feet_w - p_plf_w[:, None, :]),
+        f_feet_p=rotate_inv(r_wp, robot.f_feet_w),
     )

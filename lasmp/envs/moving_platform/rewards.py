@@ -28,6 +28,9 @@ Our choices (the paper leaves them open):
   charges the same total, the air time beyond t_swing_des, step by step as it accrues; "timeout"
   (ours) keeps the touchdown charge and also charges a swing still open at the time limit.
 - Every weighted term is multiplied by dt_s (legged_gym convention), in `RewardManager`.
+
+Terms of our own carry the prefix `ours_` and weigh 0 by default (the paper's recipe):
+- `ours_support_margin`: how far inside the feet's support polygon the centre of pressure lies.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ import torch
 from lasmp.config import ConfigError, check_positive
 from lasmp.envs import rewards as shared
 from lasmp.envs.moving_platform.state import StepState
+from lasmp.robots.a1 import LEG_NAMES
 
 REWARD_TERMS, reward_term = shared.make_registry()  # name -> fn(StepState, RewardsCfg)
 
@@ -146,7 +150,48 @@ def reg6_foot_slip(s: StepState, c: RewardsCfg) -> torch.Tensor:
     return torch.sum(s.contact.to(slip.dtype) * slip, dim=-1)
 
 
-# Paper coefficients k0..k18 with their signs (see the module docstring for the mapping).
+# ---- terms of our own (weight 0 by default) ------------------------------------------------
+
+# the feet counter-clockwise seen from above (x forward, y left), as indices into LEG_NAMES
+FEET_CCW = tuple(LEG_NAMES.index(leg) for leg in ("FR", "FL", "RL", "RR"))
+
+
+def support_margin_m(p_feet_p: torch.Tensor, f_feet_p: torch.Tensor, contact: torch.Tensor) -> torch.Tensor:
+    """(n,) How far inside the support polygon of the loaded feet the centre of pressure lies, m, in the
+    platform's plane: the smallest signed distance from the CoP (the feet's normal forces' weighted
+    mean position) to the polygon's edges, taken in the feet's counter-clockwise order (`FEET_CCW`),
+    positive inside. 0 with fewer than three loaded feet (a line or a point has no inside). The CoP
+    reaches an edge exactly when the robot starts to tip over it, so the margin is its distance
+    from tipping. With a foot tucked inside the others' hull (a reflex corner) it is a lower bound."""
+    f_n = torch.clamp(f_feet_p[:, FEET_CCW, 2], min=0.0) * contact[:, FEET_CCW]
+    loaded = f_n > 0.0
+    xy = p_feet_p[:, FEET_CCW, :2]
+    cop = (f_n[:, :, None] * xy).sum(dim=1) / f_n.sum(dim=1, keepdim=True).clamp(min=1e-9)
+    # each loaded foot's successor: the next loaded foot counter-clockwise (the nearest one wins)
+    nxt = torch.zeros_like(f_n, dtype=torch.long)
+    for step in (3, 2, 1):
+        succ = (torch.arange(4, device=f_n.device) + step) % 4
+        nxt = torch.where(loaded[:, succ], succ.expand_as(nxt), nxt)
+    edge = torch.gather(xy, 1, nxt[:, :, None].expand(-1, -1, 2)) - xy
+    to_cop = cop[:, None, :] - xy
+    cross = edge[:, :, 0] * to_cop[:, :, 1] - edge[:, :, 1] * to_cop[:, :, 0]
+    dist = cross / torch.linalg.vector_norm(edge, dim=-1).clamp(min=1e-9)
+    dist = torch.where(loaded, dist, torch.full_like(dist, float("inf")))
+    margin = dist.min(dim=1).values
+    return torch.where(loaded.sum(dim=1) >= 3, margin, torch.zeros_like(margin))
+
+
+@reward_term
+def ours_support_margin(s: StepState, c: RewardsCfg) -> torch.Tensor:
+    """(ours) The support margin (`support_margin_m`) over `support_margin_ref_m`, clipped to [0, 1]:
+    1 with the CoP at least that far inside the loaded feet's polygon, 0 on its edge (tipping) or
+    with fewer than three feet loaded. Four feet span a wider polygon than three, so the term also
+    pays for the fourth foot."""
+    margin = support_margin_m(s.p_feet_p, s.f_feet_p, s.contact)
+    return torch.clamp(margin / c.support_margin_ref_m, min=0.0, max=1.0)
+
+
+# Paper coefficients k0..k18 with their signs (see the module docstring for the mapping); our own terms off.
 DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
     "task0_collision": -10.0,
     "task1_center": 3.0,
@@ -163,6 +208,7 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
     "reg4_air_time": -2.0,
     "reg5_contact_time": -3.0,
     "reg6_foot_slip": -0.05,
+    "ours_support_margin": 0.0,
 }
 
 
@@ -186,6 +232,7 @@ class RewardsCfg:
     f_tol_n: float = 50.0  # contact-force tolerance per foot, N
     t_swing_des_s: float = 0.1  # desired minimal air time, s
     t_contact_des_s: float = 0.5  # desired minimal contact time, s
+    support_margin_ref_m: float = 0.1  # ours_support_margin pays in full from this margin on, m
     # when reg4 charges a swing: "touchdown" (the paper's literal reg4), "accrue" or "timeout" (ours,
     # closing the loophole of a foot held up to the episode's end; the module docstring)
     air_time_charge: str = "touchdown"

@@ -38,4 +38,6 @@ class StepState:
     t_air_running_s: torch.Tensor  # (n, 4) how long foot i has been in the air so far (0 in contact), s
     at_time_limit: torch.Tensor  # (n,) bool, this step is the episode's last by its length (time-out)
     v_slip_p: torch.Tensor  # (n, 4, 2) foot velocity relative to the platform surface under it, xy in p, m/s
+    p_feet_p: torch.Tensor  # (n, 4, 3) foot positions in the platform frame, m
+    f_feet_p: torch.Tensor  # (n, 4, 3) net contact force on each foot, platform frame, N
     collision: torch.Tensor  # (n,) bool, trunk/hip/thigh/calf contact, or fell off the platform

@@ -5,7 +5,8 @@
 Reads DIR/episodes.csv.gz (written by evaluate.py; DIR/episodes.csv in evaluations made before it
 compressed them) and prints, as Markdown tables, the collision rate (with the episode count behind
 it) by number of waypoints N, by the platform's maximum tilt (bins of 0.1 rad, the last open), by
-foot friction (bins of 0.1), forced vs not forced (the platform probe's
+foot friction (bins of 0.1), by the trunk's CoM shift across (|y|) and up (z) (bins of 0.05 and 0.1 m;
+training draws each axis from ±0.2 m, Xi_eval from ±0.25 m), forced vs not forced (the platform probe's
 Coulomb block, lasmp.eval.episodes), the failures by cause (the first body that touched, or the fall),
 and the share of failures that come after --late-s seconds (8 by default: the platform is often
 still converging to its last waypoint when the episode ends). `--plot` draws the first three
@@ -38,6 +39,8 @@ from lasmp.inputs import InputError, check_out_file, float_arg, int_arg
 
 TILT_BINS_RAD = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)  # the last bin is [0.7, inf)
 FRICTION_BINS = (0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3)  # the testing range, U(0.7, 1.3)
+COM_Y_ABS_BINS_M = (0.0, 0.05, 0.1, 0.15, 0.2)  # the last bin, >= 0.2 m, lies beyond the training range
+COM_Z_BINS_M = (-0.25, -0.2, -0.1, 0.0, 0.1, 0.2)
 TAIL_TILT_RAD = 0.5
 
 
@@ -99,6 +102,8 @@ def breakdown(t: dict[str, np.ndarray], late_s: float = 8.0) -> dict:
         "collisions": int(collided.sum()),
         "by_n": rate_by(t["n_waypoints"], collided, [(str(n), t["n_waypoints"] == n) for n in n_values]),
         "by_friction": rate_by(t["foot_friction"], collided, bins(t["foot_friction"], FRICTION_BINS, ".1f")),
+        "by_com_y": rate_by(None, collided, bins(np.abs(t["com_shift_y_m"]), COM_Y_ABS_BINS_M, ".2f")),
+        "by_com_z": rate_by(None, collided, bins(t["com_shift_z_m"], COM_Z_BINS_M, ".2f")),
     }
     probed = np.isfinite(t["forced"])
     out["probed"] = int(probed.sum())
@@ -148,6 +153,8 @@ def markdown(b: dict) -> str:
             "No platform-probe columns (evaluated with --no-platform-probe): no tilt or forced tables.",
         ]
     table("By foot friction", "friction", b["by_friction"])
+    table("By the CoM shift across the trunk, |y| (m)", "|CoM y|", b["by_com_y"])
+    table("By the CoM shift up, z (m)", "CoM z", b["by_com_z"])
     if "by_forced" in b:
         table(
             "Forced by the world (the Coulomb block slides off or loses contact) or not",

@@ -119,6 +119,8 @@ def table(k=6):
     t["platform_tilt_max_rad"] = np.array([0.05, 0.2, 0.45, 0.55, 0.6, 0.9][:k])
     t["forced"] = np.array([0, 0, 0, 0, 0, 1][:k], float)
     t["forced_time_s"] = np.where(t["forced"] > 0, 4.0, np.nan)
+    t["com_shift_y_m"] = np.array([0.0, -0.06, 0.04, 0.12, -0.22, 0.24][:k])
+    t["com_shift_z_m"] = np.array([-0.22, 0.0, 0.05, -0.05, 0.15, 0.21][:k])
     return t
 
 
@@ -238,8 +240,15 @@ def test_breakdown_counts_collisions_by_n_tilt_cause_forced_and_late_failures():
     assert b["tilt_tail"] == {"episodes": 3, "collisions": 2}
     assert dict(b["by_cause"]) == {"calf": 1, "trunk": 1, "off_footprint": 1}
     assert b["late"] == {"after_s": 8.0, "collisions": 2}
+    by_com_y = {label: (n, c) for label, n, c in b["by_com_y"]}
+    assert by_com_y["[0.00, 0.05)"] == (2, 1) and by_com_y["[0.05, 0.10)"] == (1, 0)
+    assert by_com_y["[0.10, 0.15)"] == (1, 0) and by_com_y[">= 0.20"] == (2, 2)  # |-0.22| counts as 0.22
+    by_com_z = {label: (n, c) for label, n, c in b["by_com_z"]}
+    assert by_com_z["[-0.25, -0.20)"] == (1, 0) and by_com_z["[0.10, 0.20)"] == (1, 1)
+    assert by_com_z[">= 0.20"] == (1, 1) and by_com_z["[0.00, 0.10)"] == (2, 1)
     text = bd.markdown(b)
     assert "| 16 | 2 | 2 | 1.000 |" in text and "Failures after 8 s: 2 of 3 (0.667)" in text
+    assert "| >= 0.20 | 2 | 2 | 1.000 |" in text.split("By the CoM shift across")[1]
 
 
 def test_a_run_s_row_counts_forced_tail_below_late_and_the_commonest_causes(tmp_path, capsys):

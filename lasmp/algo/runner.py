@@ -218,10 +218,10 @@ class LasmpRunner(OnPolicyRunnerCompat):
     REPEAT_WINDOW_S = 2.0
 
     def _on_signal(self, signum, _frame) -> None:
-        echo = time.monotonic() - getattr(self, "_signal_time_s", 0.0) < self.REPEAT_WINDOW_S
-        if self._signal is not None and echo and getattr(self, "is_distributed", False):
-            return
-        if self._signal is not None:  # a second signal: stop now, without a checkpoint
+        if self._signal is not None:
+            if self.is_distributed and time.monotonic() - self._signal_time_s < self.REPEAT_WINDOW_S:
+                return  # torchrun's echo of the first signal to every rank, not a second one
+            # a second signal: stop now, without a checkpoint
             print(
                 f"\n{signal.Signals(signum).name} again: stopped at once, without a checkpoint (the last "
                 "saved one is intact)",

@@ -4,7 +4,9 @@
 
 Per candidate and seed: collision on Xi_eval's first 2,000 episodes (metrics_2000.json; for the paper's
 recipe, the three-seed study's runs at 450 iterations, read from their episodes.csv.gz), the stance, and
-the mirror evaluation on the first 1,024 (mirror_1024.json) where it ran.
+the mirror evaluation on the first 1,024 (mirror_1024.json) where it ran, and the collision rate where
+the policies fail most (docs/screening.md#where-the-policies-fail): in the episodes whose trunk CoM is
+shifted 0.2 m or more sideways, and in those of N >= 11 waypoints (from episodes_2000.csv.gz).
 """
 
 from __future__ import annotations
@@ -23,6 +25,15 @@ def _fmt(x, f=".3f"):
     return "–" if x is None else format(x, f)
 
 
+def hard_cases(episodes: dict) -> tuple[float, float]:
+    """The collision rate of the first 2,000 episodes with |CoM y| >= 0.2 m, and with N >= 11."""
+    first = episodes["episode"] < 2000
+    collided = episodes["collided"] > 0.5
+    wide = first & (abs(episodes["com_shift_y_m"]) >= 0.2)
+    many = first & (episodes["n_waypoints"] >= 11)
+    return float(collided[wide].mean()), float(collided[many].mean())
+
+
 def row(cand: str, seed_dir: Path) -> str | None:
     m2000 = seed_dir / "metrics_2000.json"
     if m2000.exists():
@@ -30,11 +41,13 @@ def row(cand: str, seed_dir: Path) -> str | None:
         coll = r["metrics"]["collision_rate"]["mean"]
         height = r["metrics"]["height_violation_rate"]["mean"]
         gait = r.get("gait") or {}
+        wide, many = hard_cases(ep.read_csv(seed_dir / "episodes_2000.csv.gz"))
     elif cand != "lasmp":  # trained only part of the way (a policy checkpoint kept): no row yet
         return None
     else:  # the paper's recipe: the study's run of this seed
         rows = ep.read_csv(ep.episodes_path(STUDY / seed_dir.name))
-        coll, height, gait = float(rows["collided"][:2000].mean()), None, {}
+        coll, height, gait = float(rows["collided"][rows["episode"] < 2000].mean()), None, {}
+        wide, many = hard_cases(rows)
     mirror_file = seed_dir / "mirror_1024.json"
     mirror = json.loads(mirror_file.read_text()) if mirror_file.exists() else {}
     mr = mirror.get("mirror", {})
@@ -46,7 +59,7 @@ def row(cand: str, seed_dir: Path) -> str | None:
     return (
         f"| {cand} | {seed_dir.name[4:]} | {_fmt(coll)} | {_fmt(height)} | {_fmt(gait.get('four_feet_step_share'))} | "
         f"{_fmt(gait.get('episodes_with_foot_up_over_2s'))} | {_fmt(gait.get('median_longest_air_s'), '.2f')} | "
-        f"{_fmt(mr.get('failure_overlap'))} | {legs_txt} |"
+        f"{_fmt(mr.get('failure_overlap'))} | {legs_txt} | {_fmt(wide)} | {_fmt(many)} |"
     )
 
 
@@ -54,9 +67,9 @@ def main() -> None:
     print(
         "| candidate | seed | collision (2,000) | height violation (2,000) | steps on four feet | episodes with a foot "
         "up > 2 s | median longest air phase (s) | mirror overlap (1,024) | failures per leg FR FL RR RL: "
-        "original / twins relabelled |"
+        "original / twins relabelled | collision, \\|CoM y\\| >= 0.2 m | collision, N >= 11 |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for cand_dir in sorted(p for p in SCREEN.iterdir() if p.is_dir()):
         for seed_dir in sorted(p for p in cand_dir.glob("seed*") if p.is_dir()):  # not seed<k>.commands
             line = row(cand_dir.name, seed_dir)

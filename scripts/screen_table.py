@@ -3,7 +3,9 @@
     python scripts/screen_table.py
 
 Per candidate and seed: collision on Xi_eval's first 2,000 episodes (metrics_2000.json; for the paper's
-recipe, the three-seed study's runs at 450 iterations, read from their episodes.csv.gz), the stance, and
+recipe, the three-seed study's runs at 450 iterations, read from their episodes.csv.gz: `lasmp` under the
+bfloat16 learner, `lasmp_float32` under float32, the learner of the screening runs on a CPU without
+AVX-512), the stance, and
 the mirror evaluation on the first 1,024 (mirror_1024.json) where it ran, and the collision rate where
 the policies fail most (docs/screening.md#where-the-policies-fail): in the episodes whose trunk CoM is
 shifted 0.2 m or more sideways, and in those of N >= 11 waypoints (from episodes_2000.csv.gz).
@@ -15,10 +17,15 @@ import json
 from pathlib import Path
 
 from lasmp.eval import episodes as ep
+from lasmp.eval import metrics
 
 ROOT = Path(__file__).resolve().parents[1]
 SCREEN = ROOT / "results" / "screen"
-STUDY = ROOT / "results" / "study" / "lasmp"
+# the paper's recipe: candidate -> the study's runs (bfloat16 learner; float32 learner, seeds 0 and 1)
+BASELINES = {
+    "lasmp": ROOT / "results" / "study" / "lasmp",
+    "lasmp_float32": ROOT / "results" / "study" / "float32_learner" / "lasmp",
+}
 
 
 def _fmt(x, f=".3f"):
@@ -42,11 +49,18 @@ def row(cand: str, seed_dir: Path) -> str | None:
         height = r["metrics"]["height_violation_rate"]["mean"]
         gait = r.get("gait") or {}
         wide, many = hard_cases(ep.read_csv(seed_dir / "episodes_2000.csv.gz"))
-    elif cand != "lasmp":  # trained only part of the way (a policy checkpoint kept): no row yet
+    elif cand not in BASELINES:  # trained only part of the way (a policy checkpoint kept): no row yet
         return None
     else:  # the paper's recipe: the study's run of this seed
-        rows = ep.read_csv(ep.episodes_path(STUDY / seed_dir.name))
-        coll, height, gait = float(rows["collided"][rows["episode"] < 2000].mean()), None, {}
+        rows = ep.read_csv(ep.episodes_path(BASELINES[cand] / seed_dir.name))
+        first = rows["episode"] < 2000
+        # as evaluate.py summarizes its 2,000 episodes: the mean over 10 consecutive batches
+        per_episode = {
+            "collision": rows["collided"][first],
+            **{m: rows[m][first] for m in metrics.METRICS[1:]},
+        }
+        summary = metrics.summarize(per_episode)
+        coll, height, gait = summary["collision_rate"]["mean"], summary["height_violation_rate"]["mean"], {}
         wide, many = hard_cases(rows)
     mirror_file = seed_dir / "mirror_1024.json"
     mirror = json.loads(mirror_file.read_text()) if mirror_file.exists() else {}
@@ -70,9 +84,14 @@ def main() -> None:
         "original / twins relabelled | collision, \\|CoM y\\| >= 0.2 m | collision, N >= 11 |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for cand_dir in sorted(p for p in SCREEN.iterdir() if p.is_dir()):
-        for seed_dir in sorted(p for p in cand_dir.glob("seed*") if p.is_dir()):  # not seed<k>.commands
-            line = row(cand_dir.name, seed_dir)
+    screened = {p.name: p for p in SCREEN.iterdir() if p.is_dir()}
+    for cand in sorted({*screened, *BASELINES}):
+        # a baseline's seeds: its mirror evaluation's directories where it has them, else the study's
+        source = screened.get(cand, BASELINES.get(cand))
+        for seed_dir in sorted(p for p in source.glob("seed*") if p.is_dir()):  # not seed<k>.commands
+            if cand == "lasmp_float32" and seed_dir.name == "seed2":  # float32 to 244, then bfloat16
+                continue
+            line = row(cand, seed_dir)
             if line:
                 print(line)
 

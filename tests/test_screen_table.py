@@ -1,0 +1,44 @@
+"""scripts/screen_table.py: the screening table's figures come from the records they name."""
+
+from __future__ import annotations
+
+import numpy as np
+from testkit import load_script
+
+from lasmp.eval import episodes as ep
+
+
+def _records(k: int = 2400) -> dict[str, np.ndarray]:
+    """k episodes: every tenth collides; the CoM shift and N cycle so that each hard case is known."""
+    t = {c: np.zeros(k) for c in ep.COLUMNS}
+    t["episode"] = np.arange(k)
+    t["collided"] = (np.arange(k) % 10 == 0).astype(float)
+    t["com_shift_y_m"] = np.where(np.arange(k) % 4 == 0, -0.22, 0.05)  # every fourth one 0.22 m to the right
+    t["n_waypoints"] = np.where(np.arange(k) % 5 == 0, 16, 4)
+    return t
+
+
+def test_the_hard_cases_count_only_the_first_2000_episodes_and_both_sides_of_the_com():
+    table = load_script("scripts/screen_table.py")
+    t = _records()
+    wide, many = table.hard_cases(t)
+    first = t["episode"] < 2000
+    # episodes 0, 20, 40, ... collide and are both wide (multiples of 4) and of N = 16 (multiples of 5)
+    expected_wide = t["collided"][first & (t["com_shift_y_m"] < -0.2)].mean()
+    expected_many = t["collided"][first & (t["n_waypoints"] == 16)].mean()
+    assert (wide, many) == (expected_wide, expected_many) == (0.2, 0.5)
+    t["collided"][2000:] = 1.0  # the episodes past the first 2,000 change nothing
+    assert table.hard_cases(t) == (wide, many)
+
+
+def test_a_baseline_row_is_read_from_the_study_s_episode_record(tmp_path, monkeypatch):
+    table = load_script("scripts/screen_table.py")
+    seed_dir = tmp_path / "seed0"
+    seed_dir.mkdir()
+    t = _records()
+    t["height_violation_rate"][:] = 0.25
+    ep.write_csv(seed_dir / ep.EPISODES_FILE, t)
+    monkeypatch.setitem(table.BASELINES, "lasmp_float32", tmp_path)
+    cells = [c.strip() for c in table.row("lasmp_float32", seed_dir).strip("|").split("|")]
+    # candidate, seed, collision, height violation, 5 stance/mirror cells (none), the two hard cases
+    assert cells[:4] == ["lasmp_float32", "0", "0.100", "0.250"] and cells[-2:] == ["0.200", "0.500"]

@@ -1,10 +1,13 @@
 """train.py's command line, composed once before Hydra's app composes it, for the one failure
 Hydra words against us: an override naming no config key. Hydra's message suggests appending it
 with `+`, which the README rules out and validation would refuse anyway
-(`lasmp.config.check_known_keys`); ours names the key and the keys valid where it points."""
+(`lasmp.config.check_known_keys`); ours names the key and the keys valid where it points. A key
+that a recipe (cfg/recipe/) sets and the env lacks is worded as the recipe's: the recipes are the
+moving platform's."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 
@@ -31,6 +34,12 @@ def unknown_key_error(argv: list[str], config_dir: Path, config_name: str) -> st
         _compose(config_dir, config_name, args.overrides)
         return None
     except Exception as err:  # only the unknown key is ours to word; Hydra reports the rest
+        recipe = re.match(r"In 'recipe/(\w+)': ConfigKeyError.*full_key: (\S+)", str(err), re.DOTALL)
+        if recipe:
+            return (
+                f"recipe={recipe[1]} sets '{recipe[2]}', a key this command's env has not: the recipes "
+                "are the moving platform's (task=moving_platform, env=moving_platform); other tasks take none"
+            )
         if not isinstance(err.__cause__, (ConfigAttributeError, ConfigKeyError)):
             return None
         key = err.__cause__.full_key  # the first level that does not exist

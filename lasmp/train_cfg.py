@@ -134,7 +134,7 @@ class AlgoCfg:
     # (ours; the paper does not say) an episode cut by its time limit, not by a fall, adds γ·V(s_T)
     # to its last reward (rsl_rl's truncation bootstrap); false: the time limit ends the return as a
     # fall does, a switch to measure what the bootstrap does to the late falls
-    # (docs/method.md#las-mp-the-options-that-depart-from-the-papers-recipe-ours-in-screening)
+    # (docs/method.md#las-mp-the-options-that-depart-from-the-papers-recipe-ours)
     bootstrap_time_outs: bool = True
 
     def validate(self, p: str = "algo") -> None:

@@ -16,7 +16,11 @@ config, its policy checkpoint (`policy_<N-1>.pt`) and learning curve (`curves_<N
 the same budget: 450 iterations x 1,024 envs (the cpu preset), in the default configuration.
 
 LAS-MP's seeds 0, 1 and 2 come first, then seed 0's continuation to 1,000 iterations (the shipped
-policy), then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000 iterations.
+policy), then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000 iterations: all
+under the paper's recipe (`recipe=paper`). Then LAS-MP+ (`recipe=lasmp_plus`, the default since
+issue 41) and its four ablations under its recipe, at one budget chosen from LAS-MP+'s learning curve
+(docs/screening.md); each of these runs is also played with the mirror twins of Xi_eval's first
+1,024 episodes (results/study/<method>/seed<k>/mirror/).
 
 Every run trains with the bfloat16 learner (`algo.precision=bfloat16`: bfloat16 autocast, fused Adam,
 compiled MLPs) (ours): `auto` chooses by the CPU, and the study's machines differ, so one learner for
@@ -52,16 +56,25 @@ FIRST_PASS = RESULTS / "entropy_0.01"  # the first pass, under the entropy bonus
 SEEDS = (0, 1, 2)
 BUDGET = 450
 HEADLINE = 1000  # LAS-MP's three seeds continue to the cpu preset's length
-# method -> train.py overrides (the ablations of docs/method.md are policy groups; R-S its own task)
-METHODS = {
-    "lasmp": [],
-    "lasmp_centre": ["env.rewards.h_des_from=centre"],
-    "no_alignment_command": ["policy=no_alignment_command"],
-    "no_platform_velocity_estimates": ["policy=no_platform_velocity_estimates"],
-    "no_explicit_estimator": ["policy=no_explicit_estimator"],
-    "no_explicit_estimator_history": ["policy=no_explicit_estimator_history"],
-    "rs": ["task=rough_static"],
+# method -> train.py overrides (the ablations of docs/method.md are policy groups; R-S its own task).
+# LAS-MP and its ablations under the paper's recipe (recipe=paper), as the study first ran them;
+# LAS-MP+ (the default recipe, ours) and the same four ablations under it (issue 41)
+PAPER, PLUS = "recipe=paper", "recipe=lasmp_plus"
+ABLATIONS = (
+    "no_alignment_command",
+    "no_platform_velocity_estimates",
+    "no_explicit_estimator",
+    "no_explicit_estimator_history",
+)
+PAPER_METHODS = {
+    "lasmp": [PAPER],
+    "lasmp_centre": [PAPER, "env.rewards.h_des_from=centre"],
+    **{a: [PAPER, f"policy={a}"] for a in ABLATIONS},
+    "rs": ["task=rough_static"],  # the rough-terrain task takes no recipe
 }
+PLUS_METHODS = {"lasmp_plus": [PLUS], **{f"plus_{a}": [PLUS, f"policy={a}"] for a in ABLATIONS}}
+METHODS = PAPER_METHODS | PLUS_METHODS
+MIRROR_EPISODES = 1024  # LAS-MP+'s runs are also played with their mirror twins on this many
 LEARNER = "algo.precision=bfloat16"  # the study's one learner (the docstring)
 FLOAT32_LEARNER = "float32_learner"  # under RESULTS: LAS-MP's runs under float32, before the pin
 # their rows: name -> (method, iterations, seeds); seed 2 ran float32 to 244 and bfloat16 after: no row
@@ -72,17 +85,22 @@ FLOAT32_ROWS = {
 FLOAT32 = "lasmp_float32"  # the fast-learner comparison, in the first pass: not a row of the table
 FLOAT32_SEEDS = (0, 1)
 FLOAT32_EPISODES = 2000
+ABLATION_NAMES = {
+    "no_alignment_command": "w/o alignment command",
+    "no_platform_velocity_estimates": "w/o platform velocity estimates",
+    "no_explicit_estimator": "w/o explicit estimator",
+    "no_explicit_estimator_history": "w/o explicit estimator, with the history",
+}
 # the results table's rows: name -> (method, iterations, controller); Stand Still has no seeds
 ROWS = {
     "LAS-MP": ("lasmp", BUDGET, None),
     "LAS-MP (1,000 it.)": ("lasmp", HEADLINE, None),
     "LAS-MP, centre reward": ("lasmp_centre", BUDGET, None),
-    "w/o alignment command": ("no_alignment_command", BUDGET, None),
-    "w/o platform velocity estimates": ("no_platform_velocity_estimates", BUDGET, None),
-    "w/o explicit estimator": ("no_explicit_estimator", BUDGET, None),
-    "w/o explicit estimator, with the history": ("no_explicit_estimator_history", BUDGET, None),
+    **{ABLATION_NAMES[a]: (a, BUDGET, None) for a in ABLATIONS},
     "R-S": ("rs", BUDGET, "rs"),
     "R-S (oracle)": ("rs", BUDGET, "rs_oracle"),
+    "LAS-MP+": ("lasmp_plus", BUDGET, None),
+    **{f"LAS-MP+ {ABLATION_NAMES[a]}": (f"plus_{a}", BUDGET, None) for a in ABLATIONS},
 }
 STAND_STILL = RESULTS / "stand_still" / "seed0"
 # the README's table: label -> the summary rows it shows, side by side ("; " between them)
@@ -91,17 +109,11 @@ TABLE_ROWS = {
     "LAS-MP, 450 iterations": ("LAS-MP",),
     "LAS-MP, 1,000 iterations (the shipped policy)": ("LAS-MP (1,000 it.)",),
     "LAS-MP, centre reward reading": ("LAS-MP, centre reward",),
-    **{
-        name: (name,)
-        for name in (
-            "w/o alignment command",
-            "w/o platform velocity estimates",
-            "w/o explicit estimator",
-            "w/o explicit estimator, with the history",
-        )
-    },
+    **{name: (name,) for name in ABLATION_NAMES.values()},
     "R-S (its estimates; the true x_exp)": ("R-S", "R-S (oracle)"),
     "LAS-MP, float32 learner (450; 1,000 it.)": tuple(FLOAT32_ROWS),
+    "LAS-MP+ (ours), 450 iterations": ("LAS-MP+",),
+    **{f"LAS-MP+ {name}": (f"LAS-MP+ {name}",) for name in ABLATION_NAMES.values()},
 }
 TABLE_COLUMNS = {  # metric -> (header, format)
     "collision_rate": ("collision rate", ".3f"),
@@ -222,12 +234,21 @@ def controllers(method: str) -> list[str | None]:
     return ["rs", "rs_oracle"] if method == "rs" else [None]
 
 
+def evaluations(method: str, seed: int, at: int) -> list[tuple[Path, list[str]]]:
+    """A run's evaluations, (out, evaluate.py's options): all of Xi_eval per controller, and for
+    LAS-MP+'s runs the first MIRROR_EPISODES with their mirror twins (in the run's result, mirror/)."""
+    runs = [(result_dir(method, seed, at, c), ["--controller", c] if c else []) for c in controllers(method)]
+    if method in PLUS_METHODS:
+        n = str(MIRROR_EPISODES)
+        runs.append((result_dir(method, seed, at) / "mirror", ["--num-trajectories", n, "--mirror", n]))
+    return runs
+
+
 def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
     ckpt = saved_at(run_dir(method, seed), at - 1)
     if not ckpt.exists():
         raise SystemExit(f"{ckpt} does not exist: train {method} seed {seed} to {at} iterations first")
-    for controller in controllers(method):
-        out = result_dir(method, seed, at, controller)
+    for out, options in evaluations(method, seed, at):
         if (out / "metrics.json").exists():
             print(f"{out} done")
             continue
@@ -239,7 +260,8 @@ def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
             "--out",
             str(out.relative_to(ROOT)),
             "--no-platform-probe",  # the probe doubles an evaluation's cost; Stand Still's run has it
-        ] + (["--controller", controller] if controller else [])
+            *options,
+        ]
         execute(cmd, run_dir(method, seed).with_suffix(".commands"))
 
 
@@ -248,8 +270,11 @@ def steps():
     # LAS-MP's three seeds first (the row the others are compared with), then seed 0's continuation
     # to 1,000 iterations: the new shipped policy
     order = [("lasmp", s, BUDGET) for s in SEEDS] + [("lasmp", 0, HEADLINE)]
-    order += [(m, s, BUDGET) for s in SEEDS for m in METHODS if m != "lasmp"]
+    order += [(m, s, BUDGET) for s in SEEDS for m in PAPER_METHODS if m != "lasmp"]
     order += [("lasmp", s, HEADLINE) for s in SEEDS[1:]]
+    # then LAS-MP+'s three seeds, and its ablations seed by seed
+    order += [("lasmp_plus", s, BUDGET) for s in SEEDS]
+    order += [(m, s, BUDGET) for s in SEEDS for m in PLUS_METHODS if m != "lasmp_plus"]
     for method, seed, at in order:
         yield "train", method, seed, at
         yield "evaluate", method, seed, at
@@ -259,7 +284,7 @@ def is_done(kind: str, method: str, seed: int, at: int) -> bool:
     """A step is done when its result is committed. A training is also done once its evaluation is:
     on a fresh machine runs/ is gone, and a later step that needs the full checkpoint (a continuation
     to 1,000 iterations) retrains from the start."""
-    evaluated = all((result_dir(method, seed, at, c) / "metrics.json").exists() for c in controllers(method))
+    evaluated = all((out / "metrics.json").exists() for out, _ in evaluations(method, seed, at))
     if kind == "train":
         return evaluated or last_iteration(run_dir(method, seed)) + 1 >= at
     return evaluated

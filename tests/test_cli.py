@@ -169,6 +169,12 @@ def unknown_key_error(argv: list[str]) -> str | None:
         (["task=rough_static", "env.num_envs=8"], None),
         (["+env.trajectory.fiel=x"], None),  # Hydra appends it: validation refuses it, as above
         (["task=nope"], None),  # not a key: Hydra's own message lists the tasks
+        (
+            ["env=rough_static"],
+            "recipe=lasmp_plus sets 'env.rewards.air_time_charge', a key this command's env",
+        ),
+        (["task=rough_static", "recipe=paper"], "recipe=paper sets 'env.rewards.air_time_charge'"),
+        (["task=rough_static"], None),  # the task takes no recipe
     ],
 )
 def test_unknown_key_error_words_only_the_unknown_key(argv, expected):

@@ -41,7 +41,7 @@ TRAIN_COMMAND = re.compile(r"python train\.py((?:[ \t]+[^\s`#&|;]+)*)")
 # an inline code span made of overrides only, e.g. `env.trajectory.file=PATH`; placeholders such as
 # `domain_rand.split=train|test` or env-relative field names are prose, not command lines
 OVERRIDE = re.compile(
-    r"\+{0,2}(?:(?:env|policy|algo|runner)\.[\w.]+|task|policy|preset|seed|device|torch_threads|resume)"
+    r"\+{0,2}(?:(?:env|policy|algo|runner)\.[\w.]+|task|policy|recipe|preset|seed|device|torch_threads|resume)"
     r"=[^\s|<>]+"
 )
 HYDRA_FLAGS_WITH_VALUE = ("--cfg", "-c", "--package", "-p")  # Hydra's own options, not overrides
@@ -181,7 +181,7 @@ def test_the_paper_preset_validates_and_only_the_runner_needs_a_gpu():
 
 def test_the_env_option_must_be_the_tasks():
     with pytest.raises(ConfigError, match="task=moving_platform needs a MovingPlatformCfg"):
-        to_train_cfg(compose_cfg(["env=rough_static"]))
+        to_train_cfg(compose_cfg(["env=rough_static", "~recipe"]))  # a recipe sets env keys
 
 
 @pytest.mark.parametrize(

@@ -54,9 +54,38 @@ def test_the_study_runs_las_mp_s_three_seeds_then_the_shipped_policy_then_the_re
         ("lasmp", 0, 1000),
         ("lasmp_centre", 0, 450),
     ]
-    assert order[-2:] == [("lasmp", 1, 1000), ("lasmp", 2, 1000)]
-    assert len(order) == 3 * 7 + 3
+    paper = order[: 3 * 7 + 3]
+    assert paper[-2:] == [("lasmp", 1, 1000), ("lasmp", 2, 1000)]
     assert "lasmp_float32" not in {m for m, _, _ in order}  # the first pass's check, not rerun
+    # then LAS-MP+'s three seeds and its four ablations, seed by seed, at the one budget
+    plus = order[3 * 7 + 3 :]
+    assert plus[:4] == [("lasmp_plus", 0, 450), ("lasmp_plus", 1, 450), ("lasmp_plus", 2, 450)] + [
+        ("plus_no_alignment_command", 0, 450)
+    ]
+    assert len(plus) == 3 * 5 and {m for m, _, _ in plus} == set(study.PLUS_METHODS)
+
+
+def test_the_papers_runs_train_under_its_recipe_and_las_mp_plus_s_under_the_default_one_explicitly(study):
+    study.train("no_alignment_command", 0)
+    study.train("plus_no_alignment_command", 0)
+    study.train("rs", 0)
+    paper, plus, rs = study.ran
+    assert "recipe=paper" in paper and "policy=no_alignment_command" in paper
+    assert "recipe=lasmp_plus" in plus and "policy=no_alignment_command" in plus
+    assert not any(a.startswith("recipe=") for a in rs)  # the rough-terrain task takes none
+
+
+def test_las_mp_plus_runs_are_also_played_with_their_mirror_twins_and_done_only_then(study):
+    trained(study, "lasmp_plus", 0, 450)
+    study.evaluate("lasmp_plus", 0)
+    full, mirror = study.ran
+    assert "--mirror" not in full and full[full.index("--out") + 1] == "results/study/lasmp_plus/seed0"
+    assert mirror[mirror.index("--mirror") + 1] == mirror[mirror.index("--num-trajectories") + 1] == "1024"
+    assert mirror[mirror.index("--out") + 1] == "results/study/lasmp_plus/seed0/mirror"
+    evaluated(study.result_dir("lasmp_plus", 0, 450))
+    assert not study.is_done("evaluate", "lasmp_plus", 0, 450)
+    evaluated(study.result_dir("lasmp_plus", 0, 450) / "mirror")
+    assert study.is_done("evaluate", "lasmp_plus", 0, 450) and study.is_done("train", "lasmp_plus", 0, 450)
 
 
 def test_next_trains_the_first_unfinished_run_and_resumes_it_where_it_stopped(study):

@@ -1,0 +1,103 @@
+"""A run's learning curve in the benchmark's terms: the collision rate on Xi_eval's first episodes at
+several budgets, each with the training minutes it took (issue 41: choose LAS-MP+'s budget from it).
+
+    python scripts/learning_curve.py RUN_DIR --at 150 300 450 [1000] --out DIR [--episodes 2000]
+
+For each N, `evaluate.py` plays the run's checkpoint after N iterations (model_<N-1>.pt, or the
+policy_<N-1>.pt that keep_full left) on the first `--episodes` episodes into DIR/it<N>/ (kept: an
+evaluated budget is not played again). The minutes are the run's own: the sum of TensorBoard's
+`Perf/collection_time` and `Perf/learning_time` over its first N iterations, the time spent
+training on the machine that ran it, without start-up, checkpoint writes or evaluation. DIR/curve.json
+holds every point; the Markdown table is printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def checkpoint_at(run_dir: Path, n: int) -> Path:
+    for name in (f"model_{n - 1}.pt", f"policy_{n - 1}.pt"):
+        if (run_dir / name).exists():
+            return run_dir / name
+    raise SystemExit(f"{run_dir} holds no checkpoint after {n} iterations (model_{n - 1}.pt)")
+
+
+def training_minutes(run_dir: Path, n: int) -> float:
+    """Minutes of collection and learning over iterations 0..n-1, from the run's TensorBoard logs."""
+    from lasmp.eval.curves import read_scalars
+
+    scalars = read_scalars(run_dir)
+    total = 0.0
+    for tag in ("Perf/collection_time", "Perf/learning_time"):
+        its, values = scalars[tag]
+        if (its < n).sum() < n:
+            raise SystemExit(f"{run_dir}'s logs hold {tag} for {(its < n).sum()} of the first {n} iterations")
+        total += float(values[its < n].sum())
+    return total / 60.0
+
+
+def point(run_dir: Path, n: int, out: Path, episodes: int, minutes: float) -> dict:
+    ckpt, dest = checkpoint_at(run_dir, n), out / f"it{n}"
+    if not (dest / "metrics.json").exists():
+        cmd = [sys.executable, "evaluate.py", "--checkpoint", str(ckpt), "--out", str(dest)]
+        cmd += ["--num-trajectories", str(episodes), "--no-platform-probe"]
+        print(" ".join(cmd), flush=True)
+        subprocess.run(cmd, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    m = json.loads((dest / "metrics.json").read_text())
+    if m["num_episodes"] != episodes:
+        raise SystemExit(f"{dest} evaluated {m['num_episodes']} episodes, not {episodes}: give another --out")
+    return {
+        "iterations": n,
+        "checkpoint": str(ckpt),
+        "collision_rate": m["metrics"]["collision_rate"]["mean"],
+        "height_violation_rate": m["metrics"]["height_violation_rate"]["mean"],
+        "four_feet_step_share": m["gait"]["four_feet_step_share"],
+        "training_minutes": minutes,
+    }
+
+
+def table(points: list[dict], episodes: int) -> str:
+    lines = [
+        f"| iterations | collision (first {episodes:,}) | height violation | steps on four feet | training minutes |",
+        "|---|---|---|---|---|",
+    ]
+    for p in points:
+        lines.append(
+            f"| {p['iterations']} | {p['collision_rate']:.3f} | {p['height_violation_rate']:.3f} | "
+            f"{p['four_feet_step_share']:.3f} | {p['training_minutes']:.1f} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    from lasmp.eval.report import atomic_write_text
+
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("run_dir", type=Path)
+    p.add_argument("--at", type=int, nargs="+", required=True, help="budgets, in iterations")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--episodes", type=int, default=2000, help="Xi_eval's first episodes to play")
+    args = p.parse_args(argv)
+    if not args.run_dir.is_dir():
+        raise SystemExit(f"{args.run_dir} is not a run directory")
+    if any(n < 1 for n in args.at) or args.episodes < 1:
+        raise SystemExit("--at and --episodes take positive counts")
+    budgets = sorted(set(args.at))
+    for n in budgets:
+        checkpoint_at(args.run_dir, n)  # every checkpoint exists before the first evaluation starts
+    minutes = {n: training_minutes(args.run_dir, n) for n in budgets}  # and the logs cover them
+    points = [point(args.run_dir, n, args.out, args.episodes, minutes[n]) for n in budgets]
+    curve = {"run_dir": str(args.run_dir), "episodes": args.episodes, "points": points}
+    atomic_write_text(args.out / "curve.json", json.dumps(curve, indent=1))
+    print(table(points, args.episodes))
+
+
+if __name__ == "__main__":
+    main()

@@ -20,4 +20,3 @@ for m in runs/screen/mirror/*/seed*; do
   cp $m/metrics.json $out/mirror_1024.json; cp $m/metrics.md $out/mirror_1024.md
   record $m/episodes $out/episodes_1024.csv.gz; record $m/episodes_mirror $out/episodes_mirror_1024.csv.gz
 done
-cp runs/mirror.commands results/screen/mirror.commands

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -314,6 +315,17 @@ def test_a_foot_not_in_contact_carries_no_load_whatever_its_force_reads():
     s = _stance([30.0, 30.0, 30.0, 30.0], contact=[True, True, True, False])
     three = _stance([30.0, 30.0, 30.0, 0.0])
     close(R.ours_support_margin(s, P), R.ours_support_margin(three, P))
+
+
+def test_the_support_margin_at_height_pays_the_bonus_times_the_height_kernel_so_a_crouch_earns_less():
+    at_height = dataclasses.replace(P, support_margin_at_height=True)
+    s = _stance([30.0, 30.0, 30.0, 30.0], n=3)
+    s.p_body_p[:, 2] = torch.tensor([P.h_des_m, P.h_des_m - 0.1, P.h_des_m + 0.2])  # at h_des, crouched, high
+    close(R.ours_support_margin(s, P), [1.0, 1.0, 1.0])  # without it the height does not matter
+    close(R.ours_support_margin(s, at_height), [1.0, math.exp(-1.0), math.exp(-2.0)])
+    three = _stance([30.0, 30.0, 30.0, 0.0])
+    three.p_body_p[:, 2] = P.h_des_m - 0.1
+    close(R.ours_support_margin(three, at_height), R.ours_support_margin(three, P) * math.exp(-1.0))
 
 
 def test_the_support_margin_is_the_same_for_a_mirrored_stance():

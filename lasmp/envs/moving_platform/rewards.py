@@ -188,7 +188,8 @@ def ours_support_margin(s: StepState, c: RewardsCfg) -> torch.Tensor:
     with fewer than three feet loaded. Four feet span a wider polygon than three, so the term also
     pays for the fourth foot."""
     margin = support_margin_m(s.p_feet_p, s.f_feet_p, s.contact)
-    return torch.clamp(margin / c.support_margin_ref_m, min=0.0, max=1.0)
+    bonus = torch.clamp(margin / c.support_margin_ref_m, min=0.0, max=1.0)
+    return bonus * task4_height(s, c) if c.support_margin_at_height else bonus
 
 
 # Paper coefficients k0..k18 with their signs (see the module docstring for the mapping); our own terms off.
@@ -233,6 +234,10 @@ class RewardsCfg:
     t_swing_des_s: float = 0.1  # desired minimal air time, s
     t_contact_des_s: float = 0.5  # desired minimal contact time, s
     support_margin_ref_m: float = 0.1  # ours_support_margin pays in full from this margin on, m
+    # (ours) ours_support_margin times task4_height's kernel, exp(-|z - h_des| / sigma_height_m): the
+    # CoP's shift under a tilt grows with the trunk's height, so without it the cheapest margin is a
+    # crouch (docs/screening.md: sym_air_margin broke the height band in 0.62 of its steps)
+    support_margin_at_height: bool = False
     # when reg4 charges a swing: "touchdown" (the paper's literal reg4), "accrue" or "timeout" (ours,
     # closing the loophole of a foot held up to the episode's end; the module docstring)
     air_time_charge: str = "touchdown"
@@ -246,7 +251,7 @@ class RewardsCfg:
                 f"{p}.air_time_charge must be one of {list(AIR_TIME_CHARGES)}, got {self.air_time_charge!r}"
             )
         for f in dataclasses.fields(self):
-            if f.name not in ("weights", "h_des_from", "air_time_charge"):
+            if f.name not in ("weights", "h_des_from", "air_time_charge", "support_margin_at_height"):
                 check_positive(f"{p}.{f.name}", getattr(self, f.name))
 
     def h_des_p_m(self, plf_top_m: float) -> float:

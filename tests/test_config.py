@@ -19,6 +19,7 @@ from omegaconf import OmegaConf
 from omegaconf.errors import ConfigKeyError
 
 from lasmp.config import ConfigError
+from lasmp.envs.moving_platform.rewards import RewardsCfg
 from lasmp.train import make_runner
 from lasmp.train_cfg import (
     TASKS,
@@ -87,7 +88,7 @@ def test_every_readme_override_example_composes_and_validates(overrides):
     plain = to_plain(cfg)
     for override in overrides:
         key, value = override.lstrip("+").split("=", 1)
-        if key == "preset":
+        if key in ("preset", "recipe"):  # options that set several keys (tested on their own)
             continue
         got = cfg.policy.name if key == "policy" else OmegaConf.select(OmegaConf.create(plain), key)
         assert got == yaml.safe_load(value), override  # the value reached the validated config
@@ -177,6 +178,40 @@ def test_the_paper_preset_validates_and_only_the_runner_needs_a_gpu():
     if not torch.cuda.is_available():  # refused where the learner would start, before building the env
         with pytest.raises(ConfigError, match="no CUDA device"):
             make_runner(cfg, None)
+
+
+def _recipe_keys(cfg) -> tuple:
+    return (
+        cfg.env.rewards.air_time_charge,
+        cfg.env.rewards.weights["ours_support_margin"],
+        cfg.env.rewards.support_margin_at_height,
+        cfg.algo.symmetry_cfg.use_data_augmentation,
+    )
+
+
+def test_las_mp_plus_is_the_default_recipe_and_the_papers_is_one_override_away():
+    default = to_train_cfg(compose_cfg([]))
+    plus = to_train_cfg(compose_cfg(["recipe=lasmp_plus"]))
+    paper = to_train_cfg(compose_cfg(["recipe=paper"]))
+    assert to_plain(default) == to_plain(plus)
+    plus_yaml = OmegaConf.load(ROOT / "cfg" / "recipe" / "lasmp_plus.yaml")
+    assert _recipe_keys(plus)[0] == plus_yaml.env.rewards.air_time_charge != "touchdown"
+    assert _recipe_keys(plus)[3] is True
+    # the paper's recipe is the schema's defaults: every LAS-MP+ option off
+    assert _recipe_keys(paper) == ("touchdown", 0.0, False, False)
+    assert paper.env.rewards == RewardsCfg() and paper.algo == AlgoCfg()
+    # the ablations take the recipe they are given
+    ablation = to_train_cfg(compose_cfg(["policy=no_alignment_command", "recipe=paper"]))
+    assert _recipe_keys(ablation) == _recipe_keys(paper) and not ablation.policy.use_alignment
+
+
+def test_a_command_line_key_overrides_the_recipe_and_the_rough_terrain_task_takes_none():
+    cfg = to_train_cfg(compose_cfg(["env.rewards.air_time_charge=timeout"]))
+    assert cfg.env.rewards.air_time_charge == "timeout" and cfg.algo.symmetry_cfg.use_data_augmentation
+    cfg = to_train_cfg(compose_cfg(["recipe=paper", "algo.symmetry_cfg.use_data_augmentation=true"]))
+    assert cfg.env.rewards.air_time_charge == "touchdown" and cfg.algo.symmetry_cfg.use_data_augmentation
+    rough = to_train_cfg(compose_cfg(["task=rough_static"]))
+    assert not rough.algo.symmetry_cfg.enabled
 
 
 def test_the_env_option_must_be_the_tasks():

@@ -1,14 +1,16 @@
 """A run's learning curve in the benchmark's terms: the collision rate on Xi_eval's first episodes at
 several budgets, each with the training minutes it took (issue 41: choose LAS-MP+'s budget from it).
 
-    python scripts/learning_curve.py RUN_DIR --at 150 300 450 [1000] --out DIR [--episodes 2000]
+    python scripts/learning_curve.py RUN_DIR --at 150 300 449 [999] --out DIR [--episodes 2000]
 
-For each N, `evaluate.py` plays the run's checkpoint after N iterations (model_<N-1>.pt, or the
-policy_<N-1>.pt that keep_full left) on the first `--episodes` episodes into DIR/it<N>/ (kept: an
-evaluated budget is not played again). The minutes are the run's own: the sum of TensorBoard's
-`Perf/collection_time` and `Perf/learning_time` over its first N iterations, the time spent
-training on the machine that ran it, without start-up, checkpoint writes or evaluation. DIR/curve.json
-holds every point; the Markdown table is printed.
+`--at` names the run's checkpoints as rsl_rl numbers them: model_<I>.pt (or the policy_<I>.pt that
+keep_full left) is saved after iteration I, so it holds I + 1 iterations (a run of 450 saves
+model_0, model_150, model_300 every 150 and model_449 at its end). For each, `evaluate.py` plays it
+on the first `--episodes` episodes into DIR/it<I>/ (kept: an evaluated checkpoint is not played
+again). The minutes are the run's own: the sum of TensorBoard's `Perf/collection_time` and
+`Perf/learning_time` over its first I + 1 iterations, the time spent training on the machine that
+ran it, without start-up, checkpoint writes or evaluation. DIR/curve.json holds every point; the
+Markdown table is printed.
 """
 
 from __future__ import annotations
@@ -22,11 +24,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def checkpoint_at(run_dir: Path, n: int) -> Path:
-    for name in (f"model_{n - 1}.pt", f"policy_{n - 1}.pt"):
+def checkpoint_at(run_dir: Path, it: int) -> Path:
+    for name in (f"model_{it}.pt", f"policy_{it}.pt"):
         if (run_dir / name).exists():
             return run_dir / name
-    raise SystemExit(f"{run_dir} holds no checkpoint after {n} iterations (model_{n - 1}.pt)")
+    raise SystemExit(f"{run_dir} holds no checkpoint of iteration {it} (model_{it}.pt or policy_{it}.pt)")
 
 
 def training_minutes(run_dir: Path, n: int) -> float:
@@ -43,8 +45,8 @@ def training_minutes(run_dir: Path, n: int) -> float:
     return total / 60.0
 
 
-def point(run_dir: Path, n: int, out: Path, episodes: int, minutes: float) -> dict:
-    ckpt, dest = checkpoint_at(run_dir, n), out / f"it{n}"
+def point(run_dir: Path, it: int, out: Path, episodes: int, minutes: float) -> dict:
+    ckpt, dest = checkpoint_at(run_dir, it), out / f"it{it}"
     if not (dest / "metrics.json").exists():
         cmd = [sys.executable, "evaluate.py", "--checkpoint", str(ckpt), "--out", str(dest)]
         cmd += ["--num-trajectories", str(episodes), "--no-platform-probe"]
@@ -54,7 +56,7 @@ def point(run_dir: Path, n: int, out: Path, episodes: int, minutes: float) -> di
     if m["num_episodes"] != episodes:
         raise SystemExit(f"{dest} evaluated {m['num_episodes']} episodes, not {episodes}: give another --out")
     return {
-        "iterations": n,
+        "iterations": it + 1,
         "checkpoint": str(ckpt),
         "collision_rate": m["metrics"]["collision_rate"]["mean"],
         "height_violation_rate": m["metrics"]["height_violation_rate"]["mean"],
@@ -81,19 +83,19 @@ def main(argv=None) -> None:
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("run_dir", type=Path)
-    p.add_argument("--at", type=int, nargs="+", required=True, help="budgets, in iterations")
+    p.add_argument("--at", type=int, nargs="+", required=True, help="checkpoints, by the iteration they end")
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--episodes", type=int, default=2000, help="Xi_eval's first episodes to play")
     args = p.parse_args(argv)
     if not args.run_dir.is_dir():
         raise SystemExit(f"{args.run_dir} is not a run directory")
-    if any(n < 1 for n in args.at) or args.episodes < 1:
-        raise SystemExit("--at and --episodes take positive counts")
-    budgets = sorted(set(args.at))
-    for n in budgets:
-        checkpoint_at(args.run_dir, n)  # every checkpoint exists before the first evaluation starts
-    minutes = {n: training_minutes(args.run_dir, n) for n in budgets}  # and the logs cover them
-    points = [point(args.run_dir, n, args.out, args.episodes, minutes[n]) for n in budgets]
+    if any(it < 0 for it in args.at) or args.episodes < 1:
+        raise SystemExit("--at takes iterations >= 0 and --episodes a positive count")
+    its = sorted(set(args.at))
+    for it in its:
+        checkpoint_at(args.run_dir, it)  # every checkpoint exists before the first evaluation starts
+    minutes = {it: training_minutes(args.run_dir, it + 1) for it in its}  # and the logs cover them
+    points = [point(args.run_dir, it, args.out, args.episodes, minutes[it]) for it in its]
     curve = {"run_dir": str(args.run_dir), "episodes": args.episodes, "points": points}
     atomic_write_text(args.out / "curve.json", json.dumps(curve, indent=1))
     print(table(points, args.episodes))

@@ -29,7 +29,7 @@ def curve(tmp_path, monkeypatch):
 
     def fake_run(cmd, cwd, check, stdout):
         ckpt, out = Path(cmd[cmd.index("--checkpoint") + 1]), Path(cmd[cmd.index("--out") + 1])
-        n = int(ckpt.stem.split("_")[1]) + 1
+        n = int(ckpt.stem.split("_")[1]) + 1  # iterations it holds
         played.append(ckpt.name)
         out.mkdir(parents=True)
         metrics = {
@@ -44,43 +44,43 @@ def curve(tmp_path, monkeypatch):
     return mod
 
 
-def test_each_budget_plays_the_checkpoint_after_that_many_iterations_and_counts_its_training_minutes(
+def test_each_checkpoint_is_played_and_counted_with_the_iterations_it_holds_and_their_training_minutes(
     curve, tmp_path, capsys
 ):
     run = constructed_run(tmp_path / "run", 300, collect_s=2.0, learn_s=4.0)
     (run / "model_149.pt").write_bytes(b"")
     (run / "policy_299.pt").write_bytes(b"")  # keep_full turned the full checkpoint into the policy's
     out = tmp_path / "curve"
-    curve.main([str(run), "--at", "300", "150", "--out", str(out), "--episodes", "20"])
+    curve.main([str(run), "--at", "299", "149", "--out", str(out), "--episodes", "20"])
     assert curve.played == ["model_149.pt", "policy_299.pt"]
     points = json.loads((out / "curve.json").read_text())["points"]
     assert [p["iterations"] for p in points] == [150, 300]
     assert [p["collision_rate"] for p in points] == [1 / 150, 1 / 300]
     assert [p["training_minutes"] for p in points] == pytest.approx([150 * 6 / 60, 300 * 6 / 60])
     assert "| 300 | 0.003 | 0.010 | 0.500 | 30.0 |" in capsys.readouterr().out
-    curve.main([str(run), "--at", "150", "--out", str(out), "--episodes", "20"])  # evaluated: not replayed
+    curve.main([str(run), "--at", "149", "--out", str(out), "--episodes", "20"])  # evaluated: not replayed
     assert curve.played == ["model_149.pt", "policy_299.pt"]
 
 
 def test_a_missing_checkpoint_is_refused_before_any_evaluation(curve, tmp_path):
     run = constructed_run(tmp_path / "run", 10, 1.0, 1.0)
     (run / "model_4.pt").write_bytes(b"")
-    with pytest.raises(SystemExit, match="no checkpoint after 10 iterations"):
-        curve.main([str(run), "--at", "5", "10", "--out", str(tmp_path / "curve")])
+    with pytest.raises(SystemExit, match="no checkpoint of iteration 9"):
+        curve.main([str(run), "--at", "4", "9", "--out", str(tmp_path / "curve")])
     assert curve.played == []
 
 
 def test_an_evaluation_of_another_episode_count_in_the_output_is_refused(curve, tmp_path):
     run = constructed_run(tmp_path / "run", 10, 1.0, 1.0)
     (run / "model_9.pt").write_bytes(b"")
-    curve.main([str(run), "--at", "10", "--out", str(tmp_path / "curve"), "--episodes", "20"])
+    curve.main([str(run), "--at", "9", "--out", str(tmp_path / "curve"), "--episodes", "20"])
     with pytest.raises(SystemExit, match="evaluated 20 episodes, not 2000"):
-        curve.main([str(run), "--at", "10", "--out", str(tmp_path / "curve")])
+        curve.main([str(run), "--at", "9", "--out", str(tmp_path / "curve")])
 
 
 def test_logs_shorter_than_the_budget_are_refused_before_any_evaluation(curve, tmp_path):
     run = constructed_run(tmp_path / "run", 5, 1.0, 1.0)
     (run / "model_9.pt").write_bytes(b"")
     with pytest.raises(SystemExit, match="for 5 of the first 10 iterations"):
-        curve.main([str(run), "--at", "10", "--out", str(tmp_path / "curve"), "--episodes", "20"])
+        curve.main([str(run), "--at", "9", "--out", str(tmp_path / "curve"), "--episodes", "20"])
     assert curve.played == []

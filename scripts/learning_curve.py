@@ -24,18 +24,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def checkpoint_at(run_dir: Path, it: int) -> Path:
-    for name in (f"model_{it}.pt", f"policy_{it}.pt"):
-        if (run_dir / name).exists():
-            return run_dir / name
-    raise SystemExit(f"{run_dir} holds no checkpoint of iteration {it} (model_{it}.pt or policy_{it}.pt)")
-
-
-def training_minutes(run_dir: Path, n: int) -> float:
-    """Minutes of collection and learning over iterations 0..n-1, from the run's TensorBoard logs."""
-    from lasmp.eval.curves import read_scalars
-
-    scalars = read_scalars(run_dir)
+def training_minutes(scalars: dict, n: int, run_dir: Path) -> float:
+    """Minutes of collection and learning over iterations 0..n-1, from the run's TensorBoard scalars
+    (`lasmp.eval.curves.read_scalars`)."""
     total = 0.0
     for tag in ("Perf/collection_time", "Perf/learning_time"):
         its, values = scalars[tag]
@@ -45,8 +36,8 @@ def training_minutes(run_dir: Path, n: int) -> float:
     return total / 60.0
 
 
-def point(run_dir: Path, it: int, out: Path, episodes: int, minutes: float) -> dict:
-    ckpt, dest = checkpoint_at(run_dir, it), out / f"it{it}"
+def point(ckpt: Path, it: int, out: Path, episodes: int, minutes: float) -> dict:
+    dest = out / f"it{it}"
     if not (dest / "metrics.json").exists():
         cmd = [sys.executable, "evaluate.py", "--checkpoint", str(ckpt), "--out", str(dest)]
         cmd += ["--num-trajectories", str(episodes), "--no-platform-probe"]
@@ -79,7 +70,9 @@ def table(points: list[dict], episodes: int) -> str:
 
 
 def main(argv=None) -> None:
+    from lasmp.eval.curves import read_scalars
     from lasmp.eval.report import atomic_write_text
+    from lasmp.rundir import run_checkpoints
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("run_dir", type=Path)
@@ -92,10 +85,17 @@ def main(argv=None) -> None:
     if any(it < 0 for it in args.at) or args.episodes < 1:
         raise SystemExit("--at takes iterations >= 0 and --episodes a positive count")
     its = sorted(set(args.at))
-    for it in its:
-        checkpoint_at(args.run_dir, it)  # every checkpoint exists before the first evaluation starts
-    minutes = {it: training_minutes(args.run_dir, it + 1) for it in its}  # and the logs cover them
-    points = [point(args.run_dir, it, args.out, args.episodes, minutes[it]) for it in its]
+    # every checkpoint exists and the logs cover it before the first evaluation starts
+    saved = run_checkpoints(args.run_dir)
+    missing = [it for it in its if it not in saved]
+    if missing:
+        raise SystemExit(
+            f"{args.run_dir} holds no checkpoint of iteration {missing[0]} "
+            f"(model_{missing[0]}.pt or policy_{missing[0]}.pt); it holds {sorted(saved)}"
+        )
+    scalars = read_scalars(args.run_dir)
+    minutes = {it: training_minutes(scalars, it + 1, args.run_dir) for it in its}
+    points = [point(saved[it], it, args.out, args.episodes, minutes[it]) for it in its]
     curve = {"run_dir": str(args.run_dir), "episodes": args.episodes, "points": points}
     atomic_write_text(args.out / "curve.json", json.dumps(curve, indent=1))
     print(table(points, args.episodes))

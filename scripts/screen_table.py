@@ -5,7 +5,7 @@
 Per candidate and seed: collision on Xi_eval's first 2,000 episodes (metrics_2000.json; for the paper's
 recipe, the three-seed study's runs at 450 iterations, read from their episodes.csv.gz: `lasmp` under the
 bfloat16 learner, `lasmp_float32` under float32, the learner of the screening runs on a CPU without
-AVX-512), the stance, and
+AVX-512), the height violation and the world tilt (rotation deviation) there, the stance, and
 the mirror evaluation on the first 1,024 (mirror_1024.json) where it ran, and the collision rate where
 the policies fail most (docs/screening.md#where-the-policies-fail): in the episodes whose trunk CoM is
 shifted 0.2 m or more sideways, and in those of N >= 11 waypoints (from episodes_2000.csv.gz).
@@ -47,6 +47,7 @@ def row(cand: str, seed_dir: Path) -> str | None:
         r = json.loads(m2000.read_text())
         coll = r["metrics"]["collision_rate"]["mean"]
         height = r["metrics"]["height_violation_rate"]["mean"]
+        tilt = r["metrics"]["rotation_deviation_rad"]["mean"]
         gait = r.get("gait") or {}
         wide, many = hard_cases(ep.read_csv(seed_dir / "episodes_2000.csv.gz"))
     elif cand not in BASELINES:  # trained only part of the way (a policy checkpoint kept): no row yet
@@ -61,6 +62,7 @@ def row(cand: str, seed_dir: Path) -> str | None:
         }
         summary = metrics.summarize(per_episode)
         coll, height, gait = summary["collision_rate"]["mean"], summary["height_violation_rate"]["mean"], {}
+        tilt = summary["rotation_deviation_rad"]["mean"]
         wide, many = hard_cases(rows)
     mirror_file = seed_dir / "mirror_1024.json"
     mirror = json.loads(mirror_file.read_text()) if mirror_file.exists() else {}
@@ -71,7 +73,7 @@ def row(cand: str, seed_dir: Path) -> str | None:
         "–" if legs[0] is None else " / ".join("".join(f"{v} " for v in d.values()).strip() for d in legs)
     )
     return (
-        f"| {cand} | {seed_dir.name[4:]} | {_fmt(coll)} | {_fmt(height)} | {_fmt(gait.get('four_feet_step_share'))} | "
+        f"| {cand} | {seed_dir.name[4:]} | {_fmt(coll)} | {_fmt(height)} | {_fmt(tilt)} | {_fmt(gait.get('four_feet_step_share'))} | "
         f"{_fmt(gait.get('episodes_with_foot_up_over_2s'))} | {_fmt(gait.get('median_longest_air_s'), '.2f')} | "
         f"{_fmt(mr.get('failure_overlap'))} | {legs_txt} | {_fmt(wide)} | {_fmt(many)} |"
     )
@@ -79,11 +81,11 @@ def row(cand: str, seed_dir: Path) -> str | None:
 
 def main() -> None:
     print(
-        "| candidate | seed | collision (2,000) | height violation (2,000) | steps on four feet | episodes with a foot "
+        "| candidate | seed | collision (2,000) | height violation (2,000) | world tilt (rad) | steps on four feet | episodes with a foot "
         "up > 2 s | median longest air phase (s) | mirror overlap (1,024) | failures per leg FR FL RR RL: "
         "original / twins relabelled | collision, \\|CoM y\\| >= 0.2 m | collision, N >= 11 |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     screened = {p.name: p for p in SCREEN.iterdir() if p.is_dir()}
     for cand in sorted({*screened, *BASELINES}):
         # a baseline's seeds: its mirror evaluation's directories where it has them, else the study's

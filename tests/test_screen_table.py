@@ -37,8 +37,9 @@ def test_a_baseline_row_is_read_from_the_study_s_episode_record(tmp_path, monkey
     seed_dir.mkdir()
     t = _records()
     t["height_violation_rate"][:] = 0.25
+    t["rotation_deviation_rad"][:] = 0.125
     ep.write_csv(seed_dir / ep.EPISODES_FILE, t)
     monkeypatch.setitem(table.BASELINES, "lasmp_float32", tmp_path)
     cells = [c.strip() for c in table.row("lasmp_float32", seed_dir).strip("|").split("|")]
-    # candidate, seed, collision, height violation, 5 stance/mirror cells (none), the two hard cases
-    assert cells[:4] == ["lasmp_float32", "0", "0.100", "0.250"] and cells[-2:] == ["0.200", "0.500"]
+    # candidate, seed, collision, height violation, world tilt, 5 stance/mirror cells (none), the two hard cases
+    assert cells[:5] == ["lasmp_float32", "0", "0.100", "0.250", "0.125"] and cells[-2:] == ["0.200", "0.500"]

@@ -195,8 +195,14 @@ def test_las_mp_plus_is_the_default_recipe_and_the_papers_is_one_override_away()
     paper = to_train_cfg(compose_cfg(["recipe=paper"]))
     assert to_plain(default) == to_plain(plus)
     plus_yaml = OmegaConf.load(ROOT / "cfg" / "recipe" / "lasmp_plus.yaml")
-    assert _recipe_keys(plus)[0] == plus_yaml.env.rewards.air_time_charge != "touchdown"
-    assert _recipe_keys(plus)[3] is True
+    yaml_rewards = plus_yaml.env.rewards
+    assert yaml_rewards.air_time_charge != "touchdown" and yaml_rewards.weights.ours_support_margin > 0
+    assert _recipe_keys(plus) == (
+        yaml_rewards.air_time_charge,
+        yaml_rewards.weights.ours_support_margin,
+        False,
+        True,
+    )
     # the paper's recipe is the schema's defaults: every LAS-MP+ option off
     assert _recipe_keys(paper) == ("touchdown", 0.0, False, False)
     assert paper.env.rewards == RewardsCfg() and paper.algo == AlgoCfg()

@@ -45,10 +45,7 @@ def row(cand: str, seed_dir: Path) -> str | None:
     m2000 = seed_dir / "metrics_2000.json"
     if m2000.exists():
         r = json.loads(m2000.read_text())
-        coll = r["metrics"]["collision_rate"]["mean"]
-        height = r["metrics"]["height_violation_rate"]["mean"]
-        tilt = r["metrics"]["rotation_deviation_rad"]["mean"]
-        gait = r.get("gait") or {}
+        summary, gait = r["metrics"], r.get("gait") or {}
         wide, many = hard_cases(ep.read_csv(seed_dir / "episodes_2000.csv.gz"))
     elif cand not in BASELINES:  # trained only part of the way (a policy checkpoint kept): no row yet
         return None
@@ -60,10 +57,11 @@ def row(cand: str, seed_dir: Path) -> str | None:
             "collision": rows["collided"][first],
             **{m: rows[m][first] for m in metrics.METRICS[1:]},
         }
-        summary = metrics.summarize(per_episode)
-        coll, height, gait = summary["collision_rate"]["mean"], summary["height_violation_rate"]["mean"], {}
-        tilt = summary["rotation_deviation_rad"]["mean"]
+        summary, gait = metrics.summarize(per_episode), {}
         wide, many = hard_cases(rows)
+    coll, height, tilt = (
+        summary[m]["mean"] for m in ("collision_rate", "height_violation_rate", "rotation_deviation_rad")
+    )
     mirror_file = seed_dir / "mirror_1024.json"
     mirror = json.loads(mirror_file.read_text()) if mirror_file.exists() else {}
     mr = mirror.get("mirror", {})

@@ -244,8 +244,16 @@ def evaluations(method: str, seed: int, at: int) -> list[tuple[Path, list[str]]]
     return runs
 
 
+def committed_policy(method: str, seed: int, at: int) -> Path:
+    """The policy checkpoint `record_run` committed beside the run's evaluation once it had trained to
+    'at' iterations: it outlives the machine, runs/ does not."""
+    return result_dir(method, seed, at) / f"policy_{at - 1}.pt"
+
+
 def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
     ckpt = saved_at(run_dir(method, seed), at - 1)
+    if not ckpt.exists() and committed_policy(method, seed, at).exists():
+        ckpt = committed_policy(method, seed, at)  # a fresh machine: the run's checkpoints are gone
     if not ckpt.exists():
         raise SystemExit(f"{ckpt} does not exist: train {method} seed {seed} to {at} iterations first")
     for out, options in evaluations(method, seed, at):
@@ -281,12 +289,15 @@ def steps():
 
 
 def is_done(kind: str, method: str, seed: int, at: int) -> bool:
-    """A step is done when its result is committed. A training is also done once its evaluation is:
-    on a fresh machine runs/ is gone, and a later step that needs the full checkpoint (a continuation
-    to 1,000 iterations) retrains from the start."""
+    """A step is done when its result is committed. A training is also done once its policy checkpoint
+    is committed (its evaluation then plays that one): on a fresh machine runs/ is gone, and a later
+    step that needs the full checkpoint (a continuation to 1,000 iterations) retrains from the start."""
     evaluated = all((out / "metrics.json").exists() for out, _ in evaluations(method, seed, at))
     if kind == "train":
-        return evaluated or last_iteration(run_dir(method, seed)) + 1 >= at
+        trained = (
+            last_iteration(run_dir(method, seed)) + 1 >= at or committed_policy(method, seed, at).exists()
+        )
+        return evaluated or trained
     return evaluated
 
 

@@ -113,6 +113,31 @@ def test_on_a_fresh_machine_evaluated_runs_are_skipped_and_a_continuation_retrai
     assert not any(a.startswith("resume=") for a in study.ran[-1])
 
 
+def test_on_a_fresh_machine_a_run_with_a_committed_policy_is_evaluated_from_it_not_retrained(study):
+    for _, method, seed, at in study.steps():  # every run before LAS-MP+ seed 2 is evaluated
+        if (method, seed) == ("lasmp_plus", 2):
+            break
+        for out, _ in study.evaluations(method, seed, at):
+            evaluated(out)
+    policy = study.result_dir("lasmp_plus", 2, 450) / "policy_449.pt"  # trained, then the machine went
+    policy.parent.mkdir(parents=True)
+    policy.write_bytes(b"")
+    assert study.is_done("train", "lasmp_plus", 2, 450) and not study.is_done(
+        "evaluate", "lasmp_plus", 2, 450
+    )
+    study.main(["next"])
+    cmd = study.ran[-1]
+    assert (
+        cmd[0] == "evaluate.py"
+        and cmd[cmd.index("--checkpoint") + 1] == "results/study/lasmp_plus/seed2/policy_449.pt"
+    )
+    trained(study, "lasmp_plus", 2, 450)  # the run's own checkpoint, where the machine kept it, comes first
+    study.evaluate("lasmp_plus", 2)
+    assert (
+        study.ran[-1][study.ran[-1].index("--checkpoint") + 1] == "runs/study/lasmp_plus/seed2/model_449.pt"
+    )
+
+
 def test_a_method_trains_with_its_overrides_and_is_evaluated_on_all_of_xi_eval(study):
     study.train("no_alignment_command", 1)
     assert "policy=no_alignment_command" in study.ran[-1] and "runner.max_iterations=450" in study.ran[-1]

@@ -32,6 +32,7 @@ from lasmp.algo.checkpoint import (
     run_checkpoints,
 )
 from lasmp.checkpoint_cfg import rebuilding
+from lasmp.envs.trajectories.splines import PADDING
 from lasmp.rundir import RunDirError, describe, run_files
 from lasmp.train_cfg import TrainCfg, to_plain, to_train_cfg
 
@@ -246,6 +247,19 @@ SANE = {
 }
 
 
+def _finite_but_padding(value, pad: float) -> bool:
+    """A trajectory's padded field (`PADDING`): finite but for whole trailing slots of `pad` per row
+    (axis 0 rows, axis 1 slots), a row's first slot always real."""
+    a = value.detach().double().numpy() if isinstance(value, torch.Tensor) else np.asarray(value, np.float64)
+    if a.ndim < 2 or a.shape[1] == 0:
+        return bool(np.isfinite(a).all())
+    slots = a.reshape(a.shape[0], a.shape[1], -1)
+    real = np.isfinite(slots).all(axis=2)
+    padded = (np.isnan(slots) if np.isnan(pad) else slots == pad).all(axis=2)
+    trailing = (padded[:, 1:] >= padded[:, :-1]).all()  # once padded, padded to the row's end
+    return bool((real | padded).all() and trailing and real[:, 0].all())
+
+
 def insane_entry(data: dict) -> str | None:
     """The first entry of a checkpoint's training state that a training cannot continue from, in
     words (None: all sane): a non-finite number anywhere in the state a resume restores (networks,
@@ -255,7 +269,13 @@ def insane_entry(data: dict) -> str | None:
     error)."""
     state = {k: data[k] for k in data if k.endswith("state_dict") or k in RESUMED_STATE}
     for name, value in _numbers(state, ""):
-        if not _all(value, np.isfinite if not isinstance(value, torch.Tensor) else torch.isfinite):
+        pad = PADDING.get(name.removesuffix(".data").rsplit(".", 1)[-1])
+        if pad is not None:
+            if not _finite_but_padding(value, pad):
+                return (
+                    f"{name} is not finite where it is not padding (a row's trailing {pad}) ({_shown(value)})"
+                )
+        elif not _all(value, np.isfinite if not isinstance(value, torch.Tensor) else torch.isfinite):
             return f"{name} is not finite ({_shown(value)})"
         last = name.rsplit(".", 1)[-1].split("[")[0]
         rule = SANE.get(last) if not last.startswith("log_") else None

@@ -122,6 +122,9 @@ def _build_group(kind: int, degree: int, times: np.ndarray, poses: np.ndarray):
 # --------------------------------------------------------------------------------------------
 # The representation
 # --------------------------------------------------------------------------------------------
+# the fields padded by design, with their padding: a row's slots after its last knot (axis 1) are
+# NaN, after its last break +inf (a checkpoint's check tells this padding from a corrupt value)
+PADDING = {"knot_times_s": np.nan, "knot_poses": np.nan, "breaks_s": np.inf}
 _ROW_FIELDS = (
     "knot_times_s",
     "knot_poses",

@@ -7,13 +7,16 @@ import re
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 from badkit import _truncated, _write, files, latest, refused, succeeded, tiny, train
 from omegaconf import OmegaConf
 from testkit import hostile_checkpoint
 
+from lasmp import plainstate
 from lasmp.algo import checkpoint as ckpt_tool
+from lasmp.envs.trajectories.splines import PiecewisePoly
 
 
 # -- checkpoints given to resume -----------------------------------------------------------------
@@ -158,6 +161,55 @@ CHECKPOINT_CASES = {
         r"env_state\.run\.attrs\.action is not finite",
     ),
 }
+
+
+def _trajectory_fields(data) -> dict:
+    return data["env_state"]["run"]["attrs"]["traj"]["fields"]
+
+
+def _shorter_first_trajectory(data):
+    """The envs' trajectories rebuilt with env 0's one knot shorter: its row NaN-padded, as rows of
+    different lengths are in any run past the curriculum's first levels."""
+    keys = ("knot_times_s", "knot_poses", "n_knots", "kind", "degree", "n_waypoints")
+    f = {k: _trajectory_fields(data)[k]["data"].numpy() for k in keys}
+    t, p, n = f["knot_times_s"].copy(), f["knot_poses"].copy(), f["n_knots"].copy()
+    t[0, n[0] - 1], p[0, n[0] - 1], n[0] = np.nan, np.nan, n[0] - 1
+    short = PiecewisePoly.from_knots(t, p, n, f["kind"], f["degree"], f["n_waypoints"])
+    data["env_state"]["run"]["attrs"]["traj"] = plainstate.pack(short)
+
+
+def _nan_inside_a_trajectory(data):
+    _shorter_first_trajectory(data)
+    _trajectory_fields(data)["knot_times_s"]["data"][0, 1] = float("nan")
+
+
+def _inf_padding_of_knot_times(data):
+    _shorter_first_trajectory(data)
+    t = _trajectory_fields(data)["knot_times_s"]["data"]
+    t[torch.isnan(t)] = float("inf")
+
+
+CHECKPOINT_CASES.update(
+    {
+        "a NaN inside a trajectory's knots": (
+            _edit(_nan_inside_a_trajectory),
+            r"knot_times_s\.data is not finite where it is not padding",
+        ),
+        "a trajectory padded with +inf where its padding is NaN": (
+            _edit(_inf_padding_of_knot_times),
+            r"knot_times_s\.data is not finite where it is not padding",
+        ),
+    }
+)
+
+
+def test_a_checkpoint_whose_trajectories_differ_in_length_resumes_their_nan_padding_is_not_corruption(
+    run_copy,
+):
+    _edit(_shorter_first_trajectory)(run_copy / "model_1.pt", run_copy / "model_1.pt")
+    assert torch.isnan(_trajectory_fields(_saved(run_copy / "model_1.pt"))["knot_times_s"]["data"][0]).any()
+    succeeded(train(tiny(f"resume={run_copy}", "runner.max_iterations=1")))
+    assert (run_copy / "model_2.pt").exists()
 
 
 @pytest.mark.parametrize("case", sorted(CHECKPOINT_CASES))

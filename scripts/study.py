@@ -1,7 +1,7 @@
 """The three-seed study (docs/results.md): train, resume and evaluate every run, idempotently.
 
     python scripts/study.py plan                      # what is done, what is left
-    python scripts/study.py train METHOD SEED [--until N]   # train (or resume) to N iterations (default 450)
+    python scripts/study.py train METHOD SEED [--until N]   # train (or resume) to N iterations (default: its budget)
     python scripts/study.py evaluate METHOD SEED [--at N]    # all of Xi_eval on model_<N-1>.pt (or policy_<N-1>.pt)
     python scripts/study.py next                      # the first unfinished step, trained or evaluated
     python scripts/study.py summary [--paper-columns] # results/study/summary.json from what is evaluated
@@ -56,6 +56,9 @@ FIRST_PASS = RESULTS / "entropy_0.01"  # the first pass, under the entropy bonus
 SEEDS = (0, 1, 2)
 BUDGET = 450
 HEADLINE = 1000  # LAS-MP's three seeds continue to the cpu preset's length
+# LAS-MP+'s and its ablations' one budget, chosen from LAS-MP+ seed 0's learning curve by the rule of
+# docs/screening.md ("LAS-MP+'s budget") before the ablations train
+PLUS_BUDGET = 450
 # method -> train.py overrides (the ablations of docs/method.md are policy groups; R-S its own task).
 # LAS-MP and its ablations under the paper's recipe (recipe=paper), as the study first ran them;
 # LAS-MP+ (the default recipe, ours) and the same four ablations under it (issue 41)
@@ -99,8 +102,8 @@ ROWS = {
     **{ABLATION_NAMES[a]: (a, BUDGET, None) for a in ABLATIONS},
     "R-S": ("rs", BUDGET, "rs"),
     "R-S (oracle)": ("rs", BUDGET, "rs_oracle"),
-    "LAS-MP+": ("lasmp_plus", BUDGET, None),
-    **{f"LAS-MP+ {ABLATION_NAMES[a]}": (f"plus_{a}", BUDGET, None) for a in ABLATIONS},
+    "LAS-MP+": ("lasmp_plus", PLUS_BUDGET, None),
+    **{f"LAS-MP+ {ABLATION_NAMES[a]}": (f"plus_{a}", PLUS_BUDGET, None) for a in ABLATIONS},
 }
 STAND_STILL = RESULTS / "stand_still" / "seed0"
 # the README's table: label -> the summary rows it shows, side by side ("; " between them)
@@ -112,7 +115,7 @@ TABLE_ROWS = {
     **{name: (name,) for name in ABLATION_NAMES.values()},
     "R-S (its estimates; the true x_exp)": ("R-S", "R-S (oracle)"),
     "LAS-MP, float32 learner (450; 1,000 it.)": tuple(FLOAT32_ROWS),
-    "LAS-MP+ (ours), 450 iterations": ("LAS-MP+",),
+    f"LAS-MP+ (ours), {PLUS_BUDGET:,} iterations": ("LAS-MP+",),
     **{f"LAS-MP+ {name}": (f"LAS-MP+ {name}",) for name in ABLATION_NAMES.values()},
 }
 TABLE_COLUMNS = {  # metric -> (header, format)
@@ -178,7 +181,13 @@ def check_learner(cpuinfo: str | None = None) -> None:
         )
 
 
-def train(method: str, seed: int, until: int = BUDGET) -> None:
+def budget(method: str) -> int:
+    """The iterations a method's runs train for: LAS-MP+'s (and its ablations') own, the rest BUDGET."""
+    return PLUS_BUDGET if method in PLUS_METHODS else BUDGET
+
+
+def train(method: str, seed: int, until: int | None = None) -> None:
+    until = until or budget(method)
     d = run_dir(method, seed)
     done = last_iteration(d) + 1
     if done >= until:
@@ -250,7 +259,8 @@ def committed_policy(method: str, seed: int, at: int) -> Path:
     return result_dir(method, seed, at) / f"policy_{at - 1}.pt"
 
 
-def evaluate(method: str, seed: int, at: int = BUDGET) -> None:
+def evaluate(method: str, seed: int, at: int | None = None) -> None:
+    at = at or budget(method)
     ckpt = saved_at(run_dir(method, seed), at - 1)
     if not ckpt.exists() and committed_policy(method, seed, at).exists():
         ckpt = committed_policy(method, seed, at)  # a fresh machine: the run's checkpoints are gone
@@ -281,8 +291,8 @@ def steps():
     order += [(m, s, BUDGET) for s in SEEDS for m in PAPER_METHODS if m != "lasmp"]
     order += [("lasmp", s, HEADLINE) for s in SEEDS[1:]]
     # then LAS-MP+'s three seeds, and its ablations seed by seed
-    order += [("lasmp_plus", s, BUDGET) for s in SEEDS]
-    order += [(m, s, BUDGET) for s in SEEDS for m in PLUS_METHODS if m != "lasmp_plus"]
+    order += [("lasmp_plus", s, PLUS_BUDGET) for s in SEEDS]
+    order += [(m, s, PLUS_BUDGET) for s in SEEDS for m in PLUS_METHODS if m != "lasmp_plus"]
     for method, seed, at in order:
         yield "train", method, seed, at
         yield "evaluate", method, seed, at
@@ -439,7 +449,12 @@ def main(argv=None) -> None:
         s = sub.add_parser(name)
         s.add_argument("method", choices=sorted(METHODS))
         s.add_argument("seed", type=int, choices=SEEDS)
-        s.add_argument("--until" if name == "train" else "--at", type=int, default=BUDGET, dest="n")
+        s.add_argument(
+            "--until" if name == "train" else "--at",
+            type=int,
+            dest="n",
+            help="iterations (default: the method's budget, 450; LAS-MP+'s PLUS_BUDGET)",
+        )
     args = p.parse_args(argv)
     if args.cmd == "plan":
         for step in steps():

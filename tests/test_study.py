@@ -138,6 +138,25 @@ def test_on_a_fresh_machine_a_run_with_a_committed_policy_is_evaluated_from_it_n
     )
 
 
+def test_las_mp_plus_and_its_ablations_train_to_their_own_budget_resuming_a_shorter_run(study, monkeypatch):
+    monkeypatch.setattr(study, "PLUS_BUDGET", 1000)
+    plus = [(m, s, n) for kind, m, s, n in study.steps() if kind == "train" and m in study.PLUS_METHODS]
+    assert len(plus) == 15 and {n for _, _, n in plus} == {1000}
+    assert ("lasmp", 0, 450) in [(m, s, n) for _, m, s, n in study.steps()]  # the paper's runs keep theirs
+    trained(study, "lasmp_plus", 0, 450)
+    study.main(["train", "lasmp_plus", "0"])
+    assert (
+        "resume=runs/study/lasmp_plus/seed0" in study.ran[-1] and "runner.max_iterations=550" in study.ran[-1]
+    )
+    study.main(["train", "plus_no_explicit_estimator", "1"])
+    assert "runner.max_iterations=1000" in study.ran[-1]
+    trained(study, "lasmp_plus", 0, 1000)
+    study.main(["evaluate", "lasmp_plus", "0"])
+    cmd = study.ran[-1]
+    assert cmd[cmd.index("--checkpoint") + 1] == "runs/study/lasmp_plus/seed0/model_999.pt"
+    assert cmd[cmd.index("--out") + 1].startswith("results/study/lasmp_plus@1000/seed0")
+
+
 def test_a_method_trains_with_its_overrides_and_is_evaluated_on_all_of_xi_eval(study):
     study.train("no_alignment_command", 1)
     assert "policy=no_alignment_command" in study.ran[-1] and "runner.max_iterations=450" in study.ran[-1]

@@ -110,12 +110,12 @@ STAND_STILL = RESULTS / "stand_still" / "seed0"
 TABLE_ROWS = {
     "Stand Still (a = 0)": ("Stand Still",),
     "LAS-MP, 450 iterations": ("LAS-MP",),
-    "LAS-MP, 1,000 iterations (the shipped policy)": ("LAS-MP (1,000 it.)",),
+    "LAS-MP, 1,000 iterations (shipped before issue 41)": ("LAS-MP (1,000 it.)",),
     "LAS-MP, centre reward reading": ("LAS-MP, centre reward",),
     **{name: (name,) for name in ABLATION_NAMES.values()},
     "R-S (its estimates; the true x_exp)": ("R-S", "R-S (oracle)"),
     "LAS-MP, float32 learner (450; 1,000 it.)": tuple(FLOAT32_ROWS),
-    f"LAS-MP+ (ours), {PLUS_BUDGET:,} iterations": ("LAS-MP+",),
+    f"LAS-MP+ (ours), {PLUS_BUDGET:,} iterations (seed 0 is the shipped policy)": ("LAS-MP+",),
     **{f"LAS-MP+ {name}": (f"LAS-MP+ {name}",) for name in ABLATION_NAMES.values()},
 }
 TABLE_COLUMNS = {  # metric -> (header, format)

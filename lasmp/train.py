@@ -184,13 +184,15 @@ class RankLost(RuntimeError):
 def _named(err: OSError, runner: LasmpRunner, log_dir: Path) -> OSError:
     """A write error of training as one that names its file. The saves name theirs
     (`AtomicWriteError`); rsl_rl's git diff and TensorBoard's events file raise a bare OSError,
-    without a file name, from their writes."""
-    if err.filename is not None:
-        return err
-    frames = traceback.extract_tb(err.__traceback__)
+    without a file name, from their writes, or (TensorBoard reopens its events file for each append)
+    one that names the events file in bytes."""
     events = getattr(
         getattr(getattr(runner.logger.writer, "file_writer", None), "event_writer", None), "_file_name", None
     )
+    if err.filename is not None:
+        named_events = events is not None and os.fsdecode(err.filename) == os.fsdecode(events)
+        return AtomicWriteError(Path(os.fsdecode(events)), err) if named_events else err
+    frames = traceback.extract_tb(err.__traceback__)
     if any(f.name == "_store_code_state" for f in frames):
         where = log_dir / "git"  # rsl_rl's record of the code's state: git/<repository>.diff
     elif events is not None and (

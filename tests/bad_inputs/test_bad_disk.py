@@ -89,17 +89,24 @@ def test_a_disk_full_when_training_starts_names_the_file_and_leaves_nothing_that
 def _read_only_bind(where: Path) -> None:
     """Make `where` read-only under a running process: a read-only bind mount over it. (A remount of
     the tmpfs itself is refused while the training holds files open for writing: its lock, its
-    TensorBoard events.) Its open files stay writable; every new file (a save) fails with EROFS."""
+    TensorBoard events.) Its open files stay writable; every new file (a save) fails with EROFS. The
+    remount is refused (busy) while a file is open for writing through the bind mount itself, as
+    TensorBoard's events file is for an instant at each flush: it is tried again a few times."""
     subprocess.run(["mount", "--bind", str(where), str(where)], check=True)
-    done = subprocess.run(["mount", "-o", "remount,bind,ro", str(where)], capture_output=True)
-    if done.returncode != 0:
-        subprocess.run(["umount", "-l", str(where)], capture_output=True)
-        pytest.skip(f"cannot make a read-only bind mount here ({done.stderr.decode().strip()})")
+    for _ in range(40):
+        done = subprocess.run(["mount", "-o", "remount,bind,ro", str(where)], capture_output=True)
+        if done.returncode == 0:
+            return
+        time.sleep(0.05)
+    subprocess.run(["umount", "-l", str(where)], capture_output=True)
+    pytest.skip(f"cannot make a read-only bind mount here ({done.stderr.decode().strip()})")
 
 
 def test_a_run_directory_turned_read_only_mid_run_reports_the_failed_save_not_the_lock(tmpfs):
     """F02: train.py in a process, its run directory turned read-only while it trains: the error is
-    the save's (naming the checkpoint), not the lock's release (it cannot remove `.lock`) after it."""
+    the first failed write's, not the lock's release (it cannot remove `.lock`) after it. That write
+    is a save (a checkpoint) or TensorBoard's next flush (it reopens its events file for each append),
+    whichever the timing brings first."""
     disk = tmpfs("64m")
     run = disk / "run"
     proc = train_py(tiny("runner.max_iterations=200", f"runner.log_dir={run}"), disk.parent)
@@ -122,8 +129,29 @@ def test_a_run_directory_turned_read_only_mid_run_reports_the_failed_save_not_th
     assert "Traceback" not in out + err and "Exception in thread" not in err, err[-3000:]
     lines = [line for line in err.splitlines() if line.strip()]
     assert len(lines) == 1 and "Read-only file system" in lines[0], err[-3000:]
-    assert lines[0].startswith(f"error: cannot write {run}/model_"), lines[0]
+    assert lines[0].startswith(
+        (f"error: cannot write {run}/model_", f"error: cannot write {run}/events.out.")
+    ), lines[0]
     assert list(run.glob("model_*.pt"))  # the checkpoints saved before are kept
+
+
+def test_tensorboards_failed_append_names_its_events_file_as_text(tmp_path, monkeypatch):
+    """TensorBoard reopens its events file for each append, so a disk turned read-only fails there
+    with an OSError that names the file in bytes: one line naming it as a path, as a save's would."""
+    from tensorboard.compat.tensorflow_stub.io import gfile
+
+    def read_only(self, filename, file_content, binary_mode=False):
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS), os.fsencode(filename))
+
+    monkeypatch.setattr(gfile.LocalFileSystem, "append", read_only)
+    run = tmp_path / "run"
+    out = train(tiny(f"runner.log_dir={run}"))
+    refused(out, "Read-only file system")
+    lines = [line for line in out.text.splitlines() if line.startswith("error:")]
+    assert len(lines) == 1 and lines[0].startswith(f"error: cannot write {run}/events.out.tfevents."), (
+        out.text[-2000:]
+    )
+    assert "b'" not in lines[0] and "Exception in thread" not in out.text
 
 
 def test_a_disk_with_no_byte_left_names_the_run_lock_it_cannot_write_and_leaves_nothing(tmpfs):

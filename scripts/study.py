@@ -8,6 +8,7 @@
     python scripts/study.py compare                   # the fast learner against float32 (docs/performance.md)
     python scripts/study.py table [--wide] [--paper]  # the README's (docs/results.md's) table, from summary.json;
                                                       # --paper: the paper's Table II rows below ours
+    python scripts/study.py tables                    # rewrite both tables (with --paper) in README.md, docs/results.md
 
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
 appended to runs/study/<method>/seed<k>.commands before it runs, so a run can be continued in a
@@ -413,6 +414,31 @@ def table(summary_path: Path | None = None, wide: bool = False, paper: bool = Fa
     return "\n".join(lines + (paper_rows(columns, wide) if paper else []))
 
 
+# the documents whose results table `tables` rewrites: path -> table()'s `wide`
+TABLE_DOCS = {"README.md": False, "docs/results.md": True}
+
+
+def replace_table(text: str, new: str) -> str:
+    """text with its Markdown table that has new's header line (from that line to the next blank line
+    or the end) replaced by new; a text without that header is an error, not a silent no-op."""
+    lines, header = text.split("\n"), new.split("\n", 1)[0]
+    if header not in lines:
+        raise ValueError(f"no table with the header {header!r}")
+    start = lines.index(header)
+    end = next((i for i in range(start, len(lines)) if not lines[i].strip()), len(lines))
+    return "\n".join(lines[:start] + new.split("\n") + lines[end:])
+
+
+def write_tables(summary_path: Path | None = None) -> None:
+    """Rewrite each TABLE_DOCS document's results table (with the paper's rows) from summary.json."""
+    from lasmp.eval.report import atomic_write_text
+
+    for name, wide in TABLE_DOCS.items():
+        path = ROOT / name
+        atomic_write_text(path, replace_table(path.read_text(), table(summary_path, wide=wide, paper=True)))
+        print(f"wrote {name}'s table")
+
+
 def paper_rows(columns: dict, wide: bool) -> list[str]:
     """The paper's Table II (lasmp.eval.paper) as rows of our table, each marked as the
     paper's, `mean ± the paper's std` (over what, it does not say); a column it does not report stays
@@ -442,6 +468,7 @@ def main(argv=None) -> None:
     tab.add_argument(
         "--paper", action="store_true", help="the paper's Table II rows below ours, marked as its"
     )
+    sub.add_parser("tables", help="rewrite README.md's and docs/results.md's tables from summary.json")
     sub.add_parser("summary").add_argument(
         "--paper-columns", action="store_true", help="print only the paper's five metrics"
     )
@@ -469,6 +496,8 @@ def main(argv=None) -> None:
         print(compare())
     elif args.cmd == "table":
         print(table(wide=args.wide, paper=args.paper))
+    elif args.cmd == "tables":
+        write_tables()
     elif args.cmd == "summary":
         from lasmp.eval import results_table
 

@@ -345,3 +345,25 @@ def test_a_saved_iteration_is_its_full_checkpoint_or_the_policy_checkpoint_keep_
     assert study.saved_at(run, 449) == run / "policy_449.pt"
     (run / "model_449.pt").write_bytes(b"")
     assert study.saved_at(run, 449) == run / "model_449.pt"
+
+
+def test_tables_rewrites_each_documents_table_in_place_and_refuses_a_document_without_one(study):
+    path = study.RESULTS / "summary.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(
+        json.dumps({"methods": {"Stand Still": _entry(study, ["results/study/stand_still/seed0"], [0.5])}})
+    )
+    old = study.table(path, paper=True).replace("0.500", "0.999")
+    old_wide = study.table(path, wide=True, paper=True).replace("0.500", "0.999")
+    (study.ROOT / "docs").mkdir()
+    (study.ROOT / "README.md").write_text(f"# intro\n\n{old}\n\nafter the table\n")
+    (study.ROOT / "docs" / "results.md").write_text(f"text\n{old_wide}")  # a table ending the file
+    study.write_tables(path)
+    readme = (study.ROOT / "README.md").read_text()
+    assert readme == f"# intro\n\n{study.table(path, paper=True)}\n\nafter the table\n"
+    assert (
+        study.ROOT / "docs" / "results.md"
+    ).read_text() == f"text\n{study.table(path, wide=True, paper=True)}"
+    (study.ROOT / "README.md").write_text("# no table here\n")
+    with pytest.raises(ValueError, match="no table with the header"):
+        study.write_tables(path)

@@ -513,6 +513,23 @@ def test_render_model_of_rough_static_task():
     assert not any(name.startswith(DECOR_PREFIX) for name in _geom_names(env.sim.model))
 
 
+def test_tilt_probe_plays_the_first_benchmark_episodes_and_splits_their_world_tilt(run_dir, tmp_path):
+    from lasmp.eval import benchmark as bm
+
+    probe = load_script("scripts/tilt_probe.py")
+    bench, out = tmp_path / "bench.npz", tmp_path / "tilt.json"
+    bm.save(bench, bm.generate(2, 2))
+    assert probe.main([str(run_dir), "--episodes", "2", "--benchmark", str(bench), "--json", str(out)]) == 0
+    figures = json.loads(out.read_text())
+    assert figures["episodes"] == 2 and 0 <= figures["episodes_to_time_out"] <= 2
+    # the lean and the swing bound the tilt (a triangle inequality per step, averaged)
+    assert figures["tilt"] <= figures["lean"] + figures["swing"] + 1e-9
+    assert np.isfinite(figures["gain_on_deck_tilt"])  # Xi_eval's decks tilt
+    with pytest.raises(SystemExit) as err:
+        probe.main([str(run_dir), "--episodes", "0"])
+    assert err.value.code == 2
+
+
 def test_curriculum_probe_plays_one_episode_per_env_and_zero_noise_sampling_equals_the_mean(
     run_dir, tmp_path
 ):

@@ -89,14 +89,18 @@ def rotation_angle(r_a: np.ndarray, r_b: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0))
 
 
-def z_axis_h(r_wb: np.ndarray) -> np.ndarray:
-    """(n, 3) the trunk's z axis in its heading frame: world axes turned by the trunk's yaw (ZYX).
-
-    Removing the yaw makes a turn about the world vertical leave it unchanged, whatever the tilt."""
-    z_w = r_wb[:, :, 2]
+def in_heading(v_w: np.ndarray, r_wb: np.ndarray) -> np.ndarray:
+    """(n, 3) world vectors v_w in the trunk's heading frame: world axes turned by the trunk's yaw (ZYX)."""
     yaw = np.arctan2(r_wb[:, 1, 0], r_wb[:, 0, 0])
     c, s = np.cos(yaw), np.sin(yaw)
-    return np.stack([c * z_w[:, 0] + s * z_w[:, 1], -s * z_w[:, 0] + c * z_w[:, 1], z_w[:, 2]], axis=1)
+    return np.stack([c * v_w[:, 0] + s * v_w[:, 1], -s * v_w[:, 0] + c * v_w[:, 1], v_w[:, 2]], axis=1)
+
+
+def z_axis_h(r_wb: np.ndarray) -> np.ndarray:
+    """(n, 3) the trunk's z axis in its heading frame.
+
+    Removing the yaw makes a turn about the world vertical leave it unchanged, whatever the tilt."""
+    return in_heading(r_wb[:, :, 2], r_wb)
 
 
 def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -8,6 +8,7 @@
     python scripts/study.py compare                   # the fast learner against float32 (docs/performance.md)
     python scripts/study.py table [--wide] [--paper]  # the README's (docs/results.md's) table, from summary.json;
                                                       # --paper: the paper's Table II rows below ours
+    python scripts/study.py ordering                  # each ablation against its full method, by the intervals
     python scripts/study.py tables                    # rewrite both tables (with --paper) in README.md, docs/results.md
 
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
@@ -414,6 +415,39 @@ def table(summary_path: Path | None = None, wide: bool = False, paper: bool = Fa
     return "\n".join(lines + (paper_rows(columns, wide) if paper else []))
 
 
+def ordering(summary_path: Path | None = None) -> str:
+    """Whether each ablation is ordered against its full method (LAS-MP's four under the paper's
+    recipe, LAS-MP+'s under its own) by the study's rule: two rows are ordered on a metric only
+    when their 95 % intervals over three seeds do not overlap. Each cell: `above`, `below` (the
+    ablation's interval against the full method's) or `overlap`; a row with fewer than three seeds
+    orders nothing yet. The paper's Table II has every ablation above LAS-MP in every one of these
+    metrics."""
+    methods = json.loads((summary_path or RESULTS / "summary.json").read_text())["methods"]
+    lines = [
+        "| full method | ablation | seeds | " + " | ".join(h for h, _ in TABLE_COLUMNS.values()) + " |",
+        "|---" * (len(TABLE_COLUMNS) + 3) + "|",
+    ]
+    for base in ("LAS-MP", "LAS-MP+"):
+        prefix = "" if base == "LAS-MP" else "LAS-MP+ "
+        for name in ABLATION_NAMES.values():
+            row, full = methods.get(prefix + name), methods.get(base)
+            if row is None or full is None:
+                continue
+            ready = len(row["seeds"]) == len(full["seeds"]) == len(SEEDS)
+            cells = [_order(full["metrics"][m], row["metrics"][m]) if ready else "–" for m in TABLE_COLUMNS]
+            lines.append(f"| {base} | {name} | {len(row['seeds'])} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _order(full: dict, ablation: dict) -> str:
+    lo, hi = ablation["mean"] - ablation["ci95"], ablation["mean"] + ablation["ci95"]
+    if lo > full["mean"] + full["ci95"]:
+        return "above"
+    if hi < full["mean"] - full["ci95"]:
+        return "below"
+    return "overlap"
+
+
 # the documents whose results table `tables` rewrites: path -> table()'s `wide`
 TABLE_DOCS = {"README.md": False, "docs/results.md": True}
 
@@ -468,6 +502,7 @@ def main(argv=None) -> None:
     tab.add_argument(
         "--paper", action="store_true", help="the paper's Table II rows below ours, marked as its"
     )
+    sub.add_parser("ordering", help="each ablation against its full method, by the intervals")
     sub.add_parser("tables", help="rewrite README.md's and docs/results.md's tables from summary.json")
     sub.add_parser("summary").add_argument(
         "--paper-columns", action="store_true", help="print only the paper's five metrics"
@@ -496,6 +531,8 @@ def main(argv=None) -> None:
         print(compare())
     elif args.cmd == "table":
         print(table(wide=args.wide, paper=args.paper))
+    elif args.cmd == "ordering":
+        print(ordering())
     elif args.cmd == "tables":
         write_tables()
     elif args.cmd == "summary":

@@ -367,3 +367,24 @@ def test_tables_rewrites_each_documents_table_in_place_and_refuses_a_document_wi
     (study.ROOT / "README.md").write_text("# no table here\n")
     with pytest.raises(ValueError, match="no table with the header"):
         study.write_tables(path)
+
+
+def test_ordering_calls_two_rows_ordered_only_when_their_three_seed_intervals_are_apart(study):
+    three = [f"s/seed{k}" for k in range(3)]
+    methods = {
+        "LAS-MP+": _entry(study, three, [0.04, 0.05, 0.06], ci95=0.02),  # 0.03-0.07
+        "LAS-MP+ w/o alignment command": _entry(study, three, [0.09, 0.10, 0.11], ci95=0.02),  # above
+        "LAS-MP+ w/o platform velocity estimates": _entry(study, three, [0.07, 0.08, 0.09], ci95=0.02),
+        "LAS-MP+ w/o explicit estimator": _entry(study, three, [0.0, 0.01, 0.02], ci95=0.015),  # below
+        "LAS-MP+ w/o explicit estimator, with the history": _entry(study, three[:2], [0.3, 0.4]),
+    }
+    path = study.RESULTS / "summary.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"methods": methods}))
+    rows = study.ordering(path).splitlines()[2:]
+    assert [r.split(" | ")[1:4] for r in rows] == [
+        ["w/o alignment command", "3", "above"],
+        ["w/o platform velocity estimates", "3", "overlap"],  # 0.06-0.10 touches 0.03-0.07
+        ["w/o explicit estimator", "3", "below"],
+        ["w/o explicit estimator, with the history", "2", "–"],  # two seeds order nothing
+    ]

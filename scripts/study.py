@@ -22,7 +22,9 @@ policy), then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000
 under the paper's recipe (`recipe=paper`). Then LAS-MP+ (`recipe=lasmp_plus`, the default since
 issue 41) and its four ablations under its recipe, at one budget chosen from LAS-MP+'s learning curve
 (docs/screening.md); each of these runs is also played with the mirror twins of Xi_eval's first
-1,024 episodes (results/study/<method>/seed<k>/mirror/).
+1,024 episodes (results/study/<method>/seed<k>/mirror/). Last, LAS-MP+ once more on seeds 3, 4 and 5,
+which no screening run saw (its seeds 0 and 1 are the runs that chose it): a row of its own, free of
+that choice.
 
 Every run trains with the bfloat16 learner (`algo.precision=bfloat16`: bfloat16 autocast, fused Adam,
 compiled MLPs) (ours): `auto` chooses by the CPU, and the study's machines differ, so one learner for
@@ -61,6 +63,10 @@ HEADLINE = 1000  # LAS-MP's three seeds continue to the cpu preset's length
 # LAS-MP+'s and its ablations' one budget, chosen from LAS-MP+ seed 0's learning curve by the rule of
 # docs/screening.md ("LAS-MP+'s budget") before the ablations train
 PLUS_BUDGET = 450
+# LAS-MP+'s seeds 0 and 1 are the screening runs that chose it (a winner's curse); these three no
+# screening run saw, trained last, make a row of their own (FRESH_ROW)
+FRESH_SEEDS = (3, 4, 5)
+FRESH_ROW = "LAS-MP+, seeds 3-5"
 # method -> train.py overrides (the ablations of docs/method.md are policy groups; R-S its own task).
 # LAS-MP and its ablations under the paper's recipe (recipe=paper), as the study first ran them;
 # LAS-MP+ (the default recipe, ours) and the same four ablations under it (issue 41)
@@ -87,6 +93,7 @@ FLOAT32_ROWS = {
     "LAS-MP, float32 learner": ("lasmp", BUDGET, (0, 1)),
     "LAS-MP (1,000 it.), float32 learner": ("lasmp", HEADLINE, (0,)),
 }
+FRESH_ROWS = {FRESH_ROW: ("lasmp_plus", PLUS_BUDGET, FRESH_SEEDS)}
 FLOAT32 = "lasmp_float32"  # the fast-learner comparison, in the first pass: not a row of the table
 FLOAT32_SEEDS = (0, 1)
 FLOAT32_EPISODES = 2000
@@ -118,6 +125,7 @@ TABLE_ROWS = {
     "R-S (its estimates; the true x_exp)": ("R-S", "R-S (oracle)"),
     "LAS-MP, float32 learner (450; 1,000 it.)": tuple(FLOAT32_ROWS),
     f"LAS-MP+ (ours), {PLUS_BUDGET:,} iterations (seed 0 is the shipped policy)": ("LAS-MP+",),
+    "LAS-MP+, seeds 3, 4, 5 (no screening run saw them)": (FRESH_ROW,),
     **{f"LAS-MP+ {name}": (f"LAS-MP+ {name}",) for name in ABLATION_NAMES.values()},
 }
 TABLE_COLUMNS = {  # metric -> (header, format)
@@ -295,6 +303,8 @@ def steps():
     # then LAS-MP+'s three seeds, and its ablations seed by seed
     order += [("lasmp_plus", s, PLUS_BUDGET) for s in SEEDS]
     order += [(m, s, PLUS_BUDGET) for s in SEEDS for m in PLUS_METHODS if m != "lasmp_plus"]
+    # then LAS-MP+ on the seeds no screening run saw
+    order += [("lasmp_plus", s, PLUS_BUDGET) for s in FRESH_SEEDS]
     for method, seed, at in order:
         yield "train", method, seed, at
         yield "evaluate", method, seed, at
@@ -317,6 +327,8 @@ def summary_args() -> list[str]:
     """results_table's --method groups: every row with at least one evaluated seed (the study's, then
     the float32 learner's), and Stand Still."""
     rows = {name: [result_dir(m, s, at, c) for s in SEEDS] for name, (m, at, c) in ROWS.items()}
+    for name, (m, at, seeds) in FRESH_ROWS.items():
+        rows[name] = [result_dir(m, s, at) for s in seeds]
     for name, (m, at, seeds) in FLOAT32_ROWS.items():
         rows[name] = [result_dir(m, s, at, root=RESULTS / FLOAT32_LEARNER) for s in seeds]
     args = []
@@ -420,14 +432,15 @@ def ordering(summary_path: Path | None = None) -> str:
     recipe, LAS-MP+'s under its own) by the study's rule: two rows are ordered on a metric only
     when their 95 % intervals over three seeds do not overlap. Each cell: `above`, `below` (the
     ablation's interval against the full method's) or `overlap`; a row with fewer than three seeds
-    orders nothing yet. The paper's Table II has every ablation above LAS-MP in every one of these
-    metrics."""
+    orders nothing yet. LAS-MP+'s ablations are also set against FRESH_ROW, LAS-MP+ on the seeds no
+    screening run saw, once it has three. The paper's Table II has every ablation above LAS-MP in
+    every one of these metrics."""
     methods = json.loads((summary_path or RESULTS / "summary.json").read_text())["methods"]
     lines = [
         "| full method | ablation | seeds | " + " | ".join(h for h, _ in TABLE_COLUMNS.values()) + " |",
         "|---" * (len(TABLE_COLUMNS) + 3) + "|",
     ]
-    for base in ("LAS-MP", "LAS-MP+"):
+    for base in ("LAS-MP", "LAS-MP+", FRESH_ROW):
         prefix = "" if base == "LAS-MP" else "LAS-MP+ "
         for name in ABLATION_NAMES.values():
             row, full = methods.get(prefix + name), methods.get(base)
@@ -510,7 +523,7 @@ def main(argv=None) -> None:
     for name in ("train", "evaluate"):
         s = sub.add_parser(name)
         s.add_argument("method", choices=sorted(METHODS))
-        s.add_argument("seed", type=int, choices=SEEDS)
+        s.add_argument("seed", type=int, choices=SEEDS + FRESH_SEEDS)
         s.add_argument(
             "--until" if name == "train" else "--at",
             type=int,

@@ -62,7 +62,9 @@ def test_the_study_runs_las_mp_s_three_seeds_then_the_shipped_policy_then_the_re
     assert plus[:4] == [("lasmp_plus", 0, 450), ("lasmp_plus", 1, 450), ("lasmp_plus", 2, 450)] + [
         ("plus_no_alignment_command", 0, 450)
     ]
-    assert len(plus) == 3 * 5 and {m for m, _, _ in plus} == set(study.PLUS_METHODS)
+    assert len(plus) == 3 * 5 + 3 and {m for m, _, _ in plus} == set(study.PLUS_METHODS)
+    # last, LAS-MP+ on the three seeds no screening run saw
+    assert plus[-3:] == [("lasmp_plus", 3, 450), ("lasmp_plus", 4, 450), ("lasmp_plus", 5, 450)]
 
 
 def test_the_papers_runs_train_under_its_recipe_and_las_mp_plus_s_under_the_default_one_explicitly(study):
@@ -141,7 +143,7 @@ def test_on_a_fresh_machine_a_run_with_a_committed_policy_is_evaluated_from_it_n
 def test_las_mp_plus_and_its_ablations_train_to_their_own_budget_resuming_a_shorter_run(study, monkeypatch):
     monkeypatch.setattr(study, "PLUS_BUDGET", 1000)
     plus = [(m, s, n) for kind, m, s, n in study.steps() if kind == "train" and m in study.PLUS_METHODS]
-    assert len(plus) == 15 and {n for _, _, n in plus} == {1000}
+    assert len(plus) == 15 + 3 and {n for _, _, n in plus} == {1000}
     assert ("lasmp", 0, 450) in [(m, s, n) for _, m, s, n in study.steps()]  # the paper's runs keep theirs
     trained(study, "lasmp_plus", 0, 450)
     study.main(["train", "lasmp_plus", "0"])
@@ -227,6 +229,27 @@ def test_the_summary_lists_each_row_with_its_evaluated_seeds_and_leaves_out_the_
         "results/study/float32_learner/lasmp/seed0", "results/study/float32_learner/lasmp/seed1",
         "--method", "Stand Still", "results/study/stand_still/seed0",
     ]  # fmt: skip
+
+
+def test_las_mp_plus_on_the_seeds_no_screening_run_saw_is_a_row_of_its_own_trained_and_mirrored_alike(
+    study,
+):
+    for s in (0, 1, 2, 3, 4):
+        evaluated(study.result_dir("lasmp_plus", s, 450))
+    args = study.summary_args()
+    assert args[: args.index("--method", 1)] == [
+        "--method", "LAS-MP+", *(f"results/study/lasmp_plus/seed{s}" for s in (0, 1, 2)),
+    ]  # fmt: skip
+    fresh = args.index(study.FRESH_ROW)
+    assert args[fresh + 1 : fresh + 3] == ["results/study/lasmp_plus/seed3", "results/study/lasmp_plus/seed4"]
+    assert args[fresh + 3] == "--method"  # seed 5 is not evaluated yet
+    study.main(["train", "lasmp_plus", "5"])
+    assert "recipe=lasmp_plus" in study.ran[-1] and "seed=5" in study.ran[-1]
+    trained(study, "lasmp_plus", 5, 450)
+    study.main(["evaluate", "lasmp_plus", "5"])
+    assert study.ran[-1][study.ran[-1].index("--out") + 1] == "results/study/lasmp_plus/seed5/mirror"
+    with pytest.raises(SystemExit):
+        study.main(["train", "lasmp_plus", "6"])  # no such seed in the study
 
 
 def _entry(study, seeds: list[str], collision: list[float], ci95: float | None = None) -> dict:
@@ -387,4 +410,13 @@ def test_ordering_calls_two_rows_ordered_only_when_their_three_seed_intervals_ar
         ["w/o platform velocity estimates", "3", "overlap"],  # 0.06-0.10 touches 0.03-0.07
         ["w/o explicit estimator", "3", "below"],
         ["w/o explicit estimator, with the history", "2", "–"],  # two seeds order nothing
+    ]
+    # against LAS-MP+ on the fresh seeds too, once that row is in the summary
+    methods[study.FRESH_ROW] = _entry(study, [f"s/seed{k}" for k in (3, 4, 5)], [0.1, 0.11, 0.12], ci95=0.01)
+    path.write_text(json.dumps({"methods": methods}))
+    fresh = [r.split(" | ")[1:4] for r in study.ordering(path).splitlines()[2:] if study.FRESH_ROW in r]
+    assert fresh[:3] == [
+        ["w/o alignment command", "3", "overlap"],  # 0.08-0.12 against 0.09-0.13
+        ["w/o platform velocity estimates", "3", "overlap"],  # 0.06-0.10 against 0.09-0.13
+        ["w/o explicit estimator", "3", "below"],
     ]

@@ -10,6 +10,7 @@ import contextlib
 import dataclasses
 import datetime
 import os
+import shlex
 import shutil
 import sys
 import threading
@@ -27,6 +28,7 @@ from lasmp.config import ConfigError
 from lasmp.envs import registry
 from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.inputs import SEED_MAX
+from lasmp.recipe import run_label, run_slug
 from lasmp.resume import Resume, check_run_dir, explicit_keys, hydra_overrides, resume_command
 from lasmp.rundir import RunDirError, claim, run_checkpoints
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
@@ -70,13 +72,14 @@ def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunne
 
 
 def default_log_dir(cfg: TrainCfg) -> str:
-    """logs/<task>/<policy>/<date_time>, unique per job: a Hydra multirun's job adds its number
+    """logs/<task>/<recipe>[-<policy>]/<date_time> (`lasmp.recipe.run_slug`: lasmp_plus, lasmp_paper,
+    lasmp_plus-no_alignment_command; rough_static: rs), unique per job: a Hydra multirun's job adds its number
     (`-m seed=1,2,3` starts its jobs within one second), and a name already taken (two starts in the
     same second) gets the first free suffix `-2`, `-3`, ... Two processes that pick one name at the
     same instant still meet `claim`'s lock, and the second is refused naming the first."""
     stamp = datetime.datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
     job = _multirun_job()
-    base = os.path.join("logs", cfg.task, cfg.policy.name, stamp + (f"_job{job}" if job is not None else ""))
+    base = os.path.join("logs", cfg.task, run_slug(cfg), stamp + (f"_job{job}" if job is not None else ""))
     path, n = base, 1
     while os.path.lexists(path):
         n += 1
@@ -126,11 +129,11 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
         try:
             if ranks.is_main:  # only now, with everything checked, the run directory's config
                 with atomic_open(log_dir / "config.yaml", "w") as f:
-                    f.write(OmegaConf.to_yaml(to_plain(cfg)))
+                    f.write(config_header(first, last) + OmegaConf.to_yaml(to_plain(cfg)))
             processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
             span = f" ({first}\u2013{last})" if cfg.runner.max_iterations else ""
             say(
-                f"training {cfg.task} / {cfg.policy.name}: {cfg.env.num_envs} envs{processes}, {cfg.runner.max_iterations} "
+                f"training {cfg.task} / {run_label(cfg)}: {cfg.env.num_envs} envs{processes}, {cfg.runner.max_iterations} "
                 f"iterations{span}, logs in {log_dir}",
                 flush=True,
             )
@@ -153,11 +156,39 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
                         ranks.rank, ranks.world_size, log_dir, last, runner.current_learning_iteration
                     ) from err
                 raise
+            say(finished_message(log_dir), flush=True)
         except BaseException:
             if ranks.is_main and not continuing:
                 _remove_failed_start(log_dir, there_before)
             raise
     return runner
+
+
+def config_header(first: int, last: int) -> str:
+    """config.yaml's first lines: which iterations the command that wrote it trained. Why: on a resume
+    `runner.max_iterations` holds the iterations that command added (930 after 70), and read alone it
+    looks like the run's length."""
+    if first == 0:
+        return ""
+    return (
+        f"# written by a resume: this command trained iterations {first}\u2013{last}, so the run holds "
+        f"{last + 1} in all;\n# runner.max_iterations below counts the iterations it added, not the run's length\n"
+    )
+
+
+def finished_message(log_dir: Path) -> str:
+    """What a finished training prints last: its newest checkpoint and the commands that play and
+    evaluate it, as the Ctrl-C path names its checkpoint and the resume command."""
+    saved = run_checkpoints(log_dir)
+    if not saved:
+        return f"finished: no checkpoint was saved in {log_dir}"
+    n, newest = next(reversed(saved.items()))
+    path = shlex.quote(str(newest))
+    return (
+        f"finished: the last checkpoint is {newest} (iteration {n})\n"
+        f"play it:     python play.py --checkpoint {path} --video episode.mp4\n"
+        f"evaluate it: python evaluate.py --checkpoint {path}"
+    )
 
 
 class RankLost(RuntimeError):

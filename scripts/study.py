@@ -6,8 +6,9 @@
     python scripts/study.py next                      # the first unfinished step, trained or evaluated
     python scripts/study.py summary [--paper-columns] # results/study/summary.json from what is evaluated
     python scripts/study.py compare                   # the fast learner against float32 (docs/performance.md)
-    python scripts/study.py table [--wide] [--paper]  # the README's (docs/results.md's) table, from summary.json;
+    python scripts/study.py table [--wide] [--paper]  # the study's table (--wide: docs/results.md's), from summary.json;
                                                       # --paper: the paper's Table II rows below ours
+    python scripts/study.py table --headline          # the README's: ours with the paper's row beside it
     python scripts/study.py ordering                  # each ablation against its full method, by the intervals
     python scripts/study.py tables                    # rewrite both tables (with --paper) in README.md, docs/results.md
 
@@ -126,6 +127,20 @@ TABLE_ROWS = {
     f"LAS-MP+ (ours), {PLUS_BUDGET:,} iterations (seed 0 is the shipped policy)": ("LAS-MP+",),
     f"LAS-MP+, seeds {', '.join(map(str, FRESH_SEEDS))} (no screening run saw them)": (FRESH_ROW,),
     **{f"LAS-MP+ {name}": (f"LAS-MP+ {name}",) for name in ABLATION_NAMES.values()},
+}
+# the README's headline: label -> (summary row, the seed directory of a single run or None for the row
+# over its seeds, the paper's Table II row beside it (lasmp.eval.paper)); at most 8 rows
+SHIPPED_SEED = "results/study/lasmp_plus/seed0"  # resources/policies/lasmp_a1.pt (its README)
+HEADLINE_ROWS = {
+    f"the shipped policy: LAS-MP+ seed 0, {PLUS_BUDGET} iterations": ("LAS-MP+", SHIPPED_SEED, "lasmp"),
+    f"LAS-MP+ (ours), {PLUS_BUDGET} iterations, fresh seeds {FRESH_SEEDS[0]}-{FRESH_SEEDS[-1]}": (
+        FRESH_ROW,
+        None,
+        "lasmp",
+    ),
+    f"LAS-MP, the paper's recipe, {BUDGET} iterations, seeds 0-2": ("LAS-MP", None, "lasmp"),
+    "Stand Still (zero action)": ("Stand Still", None, "stand_still"),
+    f"R-S (rough-terrain policy, zero command), {BUDGET} iterations, seeds 0-2": ("R-S", None, "rs"),
 }
 TABLE_COLUMNS = {  # metric -> (header, format)
     "collision_rate": ("collision rate", ".3f"),
@@ -425,6 +440,37 @@ def table(summary_path: Path | None = None, wide: bool = False, paper: bool = Fa
     return "\n".join(lines + (paper_rows(columns, wide) if paper else []))
 
 
+def headline(summary_path: Path | None = None) -> str:
+    """The README's table (HEADLINE_ROWS): each of our rows with the paper's Table II row beside it, the
+    same metric in adjacent columns (ours, then the paper's), so that the two read at a glance. Ours:
+    the mean ± a 95 % t-interval over three seeds, or one run's value (the shipped policy, Stand
+    Still); the paper's: its mean ± its std. A row not yet evaluated is left out."""
+    from lasmp.eval.paper import paper_row
+
+    methods = json.loads((summary_path or RESULTS / "summary.json").read_text())["methods"]
+    heads = [f"{h}: ours | paper" for h, _ in TABLE_COLUMNS.values()]
+    lines = [
+        "| ours, vs the paper's row | " + " | ".join(heads) + " |",
+        "|---" * (2 * len(heads) + 1) + "|",
+    ]
+    for label, (name, seed_dir, paper_key) in HEADLINE_ROWS.items():
+        entry = methods.get(name)
+        if entry is None or (seed_dir is not None and seed_dir not in entry["seeds"]):
+            continue
+        paper = paper_row(paper_key)
+        cells = []
+        for metric, (_, fmt) in TABLE_COLUMNS.items():
+            m = entry["metrics"][metric]
+            if seed_dir is not None:
+                ours = f"{m['per_seed'][entry['seeds'].index(seed_dir)]:{fmt}}"
+            else:
+                ours = _cell(entry, metric, fmt)
+            theirs = paper["metrics"][metric]
+            cells += [ours, f"{theirs['mean']} ± {theirs['std']}"]
+        lines.append(f"| {label}, vs the paper's {paper['method']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def ordering(summary_path: Path | None = None) -> str:
     """Whether each ablation is ordered against its full method (LAS-MP's four under the paper's
     recipe, LAS-MP+'s under its own) by the study's rule: two rows are ordered on a metric only
@@ -459,8 +505,12 @@ def _order(full: dict, ablation: dict) -> str:
     return "overlap"
 
 
-# the documents whose results table `tables` rewrites: path -> table()'s `wide`
-TABLE_DOCS = {"README.md": False, "docs/results.md": True}
+# the documents whose results table `tables` rewrites: path -> the table (the README's headline, the
+# full study in docs/results.md)
+TABLE_DOCS = {
+    "README.md": lambda summary: headline(summary),
+    "docs/results.md": lambda summary: table(summary, wide=True, paper=True),
+}
 
 
 def replace_table(text: str, new: str) -> str:
@@ -475,12 +525,12 @@ def replace_table(text: str, new: str) -> str:
 
 
 def write_tables(summary_path: Path | None = None) -> None:
-    """Rewrite each TABLE_DOCS document's results table (with the paper's rows) from summary.json."""
+    """Rewrite each TABLE_DOCS document's results table from summary.json."""
     from lasmp.eval.report import atomic_write_text
 
-    for name, wide in TABLE_DOCS.items():
+    for name, make in TABLE_DOCS.items():
         path = ROOT / name
-        atomic_write_text(path, replace_table(path.read_text(), table(summary_path, wide=wide, paper=True)))
+        atomic_write_text(path, replace_table(path.read_text(), make(summary_path)))
         print(f"wrote {name}'s table")
 
 
@@ -513,6 +563,9 @@ def main(argv=None) -> None:
     tab.add_argument(
         "--paper", action="store_true", help="the paper's Table II rows below ours, marked as its"
     )
+    tab.add_argument(
+        "--headline", action="store_true", help="the README's table: ours with the paper's beside it"
+    )
     sub.add_parser("ordering", help="each ablation against its full method, by the intervals")
     sub.add_parser("tables", help="rewrite README.md's and docs/results.md's tables from summary.json")
     sub.add_parser("summary").add_argument(
@@ -541,7 +594,7 @@ def main(argv=None) -> None:
     elif args.cmd == "compare":
         print(compare())
     elif args.cmd == "table":
-        print(table(wide=args.wide, paper=args.paper))
+        print(headline() if args.headline else table(wide=args.wide, paper=args.paper))
     elif args.cmd == "ordering":
         print(ordering())
     elif args.cmd == "tables":

@@ -358,6 +358,30 @@ def test_the_table_with_paper_puts_every_row_of_the_papers_table_ii_below_ours_m
         assert {r.count("|") for r in rows} == {rows[0].count("|")}  # every row as wide as the header
 
 
+def test_the_headline_puts_each_of_our_rows_beside_the_papers_row_it_reproduces_metric_by_metric(study):
+    plus = [f"results/study/lasmp_plus/seed{k}" for k in range(3)]
+    methods = {
+        "Stand Still": _entry(study, ["results/study/stand_still/seed0"], [0.634]),
+        "LAS-MP+": _entry(study, plus, [0.036, 0.069, 0.054], ci95=0.04),
+        study.FRESH_ROW: _entry(
+            study, [f"results/study/lasmp_plus/seed{k}" for k in (3, 4, 5)], [0.1] * 3, 0.02
+        ),
+    }
+    path = study.RESULTS / "summary.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"methods": methods}))
+    rows = study.headline(path).splitlines()
+    assert rows[0].startswith("| ours, vs the paper's row | collision rate: ours | paper | height-violation")
+    assert len(rows) == 2 + 3 <= 2 + 8  # the paper's recipe and R-S not evaluated: left out
+    shipped, fresh, still = rows[2:]
+    # the shipped policy is seed 0's own value, not the mean over seeds; each metric beside the paper's
+    assert shipped.startswith("| the shipped policy: LAS-MP+ seed 0, 450 iterations, vs the paper's LAS-MP |")
+    assert shipped.split(" | ")[1:3] == ["0.036", "0.029 ± 0.03"]
+    assert fresh.split(" | ")[1:3] == ["0.100 ± 0.020", "0.029 ± 0.03"] and "fresh seeds 3-5" in fresh
+    assert still.split(" | ")[1:3] == ["0.634", "0.612 ± 0.29"]
+    assert {r.count("|") for r in rows} == {rows[0].count("|")}
+
+
 def test_a_saved_iteration_is_its_full_checkpoint_or_the_policy_checkpoint_keep_full_turned_it_into(
     study, tmp_path
 ):
@@ -376,14 +400,14 @@ def test_tables_rewrites_each_documents_table_in_place_and_refuses_a_document_wi
     path.write_text(
         json.dumps({"methods": {"Stand Still": _entry(study, ["results/study/stand_still/seed0"], [0.5])}})
     )
-    old = study.table(path, paper=True).replace("0.500", "0.999")
+    old = study.headline(path).replace("0.500", "0.999")
     old_wide = study.table(path, wide=True, paper=True).replace("0.500", "0.999")
     (study.ROOT / "docs").mkdir()
     (study.ROOT / "README.md").write_text(f"# intro\n\n{old}\n\nafter the table\n")
     (study.ROOT / "docs" / "results.md").write_text(f"text\n{old_wide}")  # a table ending the file
     study.write_tables(path)
     readme = (study.ROOT / "README.md").read_text()
-    assert readme == f"# intro\n\n{study.table(path, paper=True)}\n\nafter the table\n"
+    assert readme == f"# intro\n\n{study.headline(path)}\n\nafter the table\n" and "0.500" in readme
     assert (
         study.ROOT / "docs" / "results.md"
     ).read_text() == f"text\n{study.table(path, wide=True, paper=True)}"

@@ -6,6 +6,9 @@ A plain module (pytest's `pythonpath` puts tests/ on sys.path): `from testkit im
 from __future__ import annotations
 
 import importlib.util
+import os
+import subprocess
+import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -81,3 +84,33 @@ def load_script(path: str) -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+# the tiny training as train.py's command-line overrides: 4 envs, 15-step episodes (the first end in
+# iteration 1), small networks, the float32 learner (no compilation), a checkpoint every iteration
+TINY_CLI = (
+    "env.num_envs=4",
+    "env.trajectory.duration_s=0.3",
+    "torch_threads=1",
+    "algo.precision=float32",
+    "algo.num_mini_batches=2",
+    "algo.num_learning_epochs=1",
+    "policy.actor_hidden_dims=[32,32,32]",
+    "policy.critic_hidden_dims=[32,32]",
+    "runner.save_interval=1",
+)
+
+
+def run_script(script: str, *args: str, cwd: Path, ok: bool = True) -> subprocess.CompletedProcess:
+    """A script of the repository root (train.py, evaluate.py) run as a user runs it, unbuffered;
+    with `ok`, a failure fails the test showing the end of its stderr."""
+    out = subprocess.run(
+        [sys.executable, str(ROOT / script), *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        timeout=600,
+    )
+    assert not ok or out.returncode == 0, out.stderr[-3000:]
+    return out

@@ -53,6 +53,7 @@ from lasmp.eval.paper import paper_key, paper_row
 from lasmp.eval.report import markdown, plot_estimates
 from lasmp.eval.run import run_benchmark
 from lasmp.inputs import int_arg, seed_arg
+from lasmp.recipe import recipe_name
 
 DEFAULT_BENCHMARK = Path("benchmarks") / "xi_eval.npz"
 NUM_BATCHES = 10
@@ -131,7 +132,8 @@ def build(args, extra_env: dict | None = None, checkpoint: Path | None = None):
         )
     env = MovingPlatformEnv(build_env_cfg(deep_merge(_asdict(cfg.env), overrides), schema=MovingPlatformCfg))
     check_compatible(deployed.checkpoint, env)
-    return env, (lambda obs: policy(obs)), policy, f"LAS-MP checkpoint {args.checkpoint} ({cfg.policy.name})"
+    method = f"{recipe_name(cfg)} checkpoint {args.checkpoint} ({cfg.policy.name})"
+    return env, (lambda obs: policy(obs)), policy, method
 
 
 def zero_command(env) -> torch.Tensor:
@@ -326,7 +328,13 @@ def evaluate_xi(args, out: od.ResultDir, bench, env, controller, policy, method:
         "mean_episode_steps": float(episodes["steps"].mean()),
         "forced_episodes": None if probe is None else int(pp.count_forced(probe)),
         "wall_time_s": run["wall_time_s"],
+        # what `python -m lasmp.eval.regenerate` replays, and the records it must give again
+        "batch_envs": args.batch_envs,
+        "torch_threads": args.torch_threads,
+        ep.DIGEST_KEY: {ep.EPISODES_FILE: ep.table_digest(table)},
     }
+    if mirror is not None:
+        result[ep.DIGEST_KEY][ep.MIRROR_EPISODES_FILE] = ep.table_digest(mirror_table)
     if "estimator" in run:
         result["estimator"] = run["estimator"]
     if mirror is not None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import gzip
+import hashlib
 import io
 import zlib
 from pathlib import Path
@@ -81,6 +82,87 @@ def episodes_path(directory: str | Path) -> Path:
     plain = directory / EPISODES_FILE.removesuffix(".gz")
     compressed = directory / EPISODES_FILE
     return plain if plain.is_file() and not compressed.is_file() else compressed
+
+
+REGENERATE = "python -m lasmp.eval.regenerate"  # lasmp/eval/regenerate.py
+
+
+def missing_records(path: str | Path) -> str:
+    """The one line a reader of a missing episodes file says: the records are derived data, not
+    committed (a clone stays light), and one command makes them again from the run's policy."""
+    path = Path(path)
+    return (
+        f"{path}: no such file; per-episode records are derived data: regenerate them with "
+        f"`{REGENERATE} {path.parent}` (or evaluate.py writes them beside metrics.json)"
+    )
+
+
+# -- the records' digest -----------------------------------------------------------------------
+# metrics.json's key: episodes file name -> the digest of its records (`table_digest`)
+DIGEST_KEY = "episode_records"
+COLUMN_DIGEST_HEX = 16  # per column, enough to tell which columns differ
+
+
+def _digest(columns: list[str], cells: dict[str, list[str]]) -> dict:
+    per_column = {c: hashlib.sha256("\n".join(cells[c]).encode()).hexdigest() for c in columns}
+    whole = hashlib.sha256("\n".join(f"{c}:{per_column[c]}" for c in columns).encode()).hexdigest()
+    return {
+        "sha256": whole,
+        "rows": len(cells[columns[0]]) if columns else 0,
+        "columns": {c: h[:COLUMN_DIGEST_HEX] for c, h in per_column.items()},
+    }
+
+
+def table_digest(table: dict[str, np.ndarray], columns: tuple[str, ...] = WRITTEN_COLUMNS) -> dict:
+    """The digest of the records `write_csv(path, table, columns)` writes: a SHA-256 over every column's
+    cells as the CSV holds them (full float precision, an empty cell for no value), and a short one per
+    column. Why cells, not bytes: the same records give the same digest whatever the file's
+    compression, and a parsed file gives it again (`file_digest`), so a regenerated file can be checked
+    against the digest metrics.json kept after the file itself was removed."""
+    n = len(table[columns[0]])
+    table = {**{c: np.full(n, np.nan) for c in OPTIONAL_COLUMNS}, **table}
+    return _digest(list(columns), {c: [_cell(v) for v in table[c]] for c in columns})
+
+
+def file_digest(path: str | Path) -> dict:
+    """`table_digest` of an episodes file (plain or gzip-compressed CSV), over the columns its header
+    names: each cell parsed and written again as the CSV writer writes it (a number in full precision,
+    text as it is), so that it equals the digest of the records it was written from."""
+    path = Path(path)
+    opener = gzip.open if _is_gzip(path) else open
+    try:
+        with opener(path, "rt", newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+    except (OSError, EOFError, zlib.error, UnicodeDecodeError, csv.Error) as err:
+        raise EpisodesFileError(f"{path}: unreadable ({err})") from None
+    if not rows:
+        raise EpisodesFileError(f"{path}: empty (no header row)")
+    header, body = rows[0], rows[1:]
+    if any(len(row) != len(header) for row in body):
+        raise EpisodesFileError(f"{path}: a row's cells do not match the header's {len(header)}")
+    return _digest(header, {c: [_canonical(row[j]) for row in body] for j, c in enumerate(header)})
+
+
+def _canonical(cell: str) -> str:
+    """A CSV cell as `_cell` writes its value: a number in full precision, text unchanged."""
+    if cell == "" or not _is_float(cell):
+        return cell
+    return _cell(float(cell))
+
+
+def _is_gzip(path: Path) -> bool:
+    with open(path, "rb") as f:
+        return path.suffix == ".gz" or f.read(len(GZIP_MAGIC)) == GZIP_MAGIC
+
+
+def digest_differences(stored: dict, got: dict) -> list[str]:
+    """The columns whose records differ between two digests (a column one lacks included), and a
+    row count that differs; empty when the digests match."""
+    if stored["sha256"] == got["sha256"]:
+        return []
+    out = [f"rows {stored['rows']} -> {got['rows']}"] if stored["rows"] != got["rows"] else []
+    a, b = stored["columns"], got["columns"]
+    return out + [c for c in dict.fromkeys([*a, *b]) if a.get(c) != b.get(c)]
 
 
 # -- the block ---------------------------------------------------------------------------------
@@ -151,7 +233,7 @@ def read_csv(path) -> dict[str, np.ndarray]:
     as COLUMNS -> arrays (float, NaN for empty cells; text columns as str)."""
     path = Path(path)
     if not path.is_file():
-        raise EpisodesFileError(f"{path}: no such file (evaluate.py writes it beside metrics.json)")
+        raise EpisodesFileError(missing_records(path))
     compressed = path.suffix == ".gz"
     try:
         with open(path, "rb") as f:

@@ -50,7 +50,8 @@ PAPER_ROWS: dict[str, tuple[str, tuple[tuple[float, float], ...]]] = {
 
 def paper_key(controller: str | None, method: str) -> str | None:
     """The PAPER_ROWS key of an evaluation: its baseline, or the policy name that `cli.build` puts at
-    the end of a checkpoint's method string ("LAS-MP checkpoint PATH (name)"); None if neither."""
+    the end of a checkpoint's method string ("LAS-MP+ checkpoint PATH (name)", the recipe's name first);
+    None if neither."""
     if controller is not None:
         return controller
     match = re.search(r"\((\w+)\)$", method)

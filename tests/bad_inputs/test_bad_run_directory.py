@@ -181,7 +181,7 @@ def test_a_multirun_with_the_default_log_dir_trains_every_job_and_leaves_no_mult
     proc = train_py(["-m", "seed=1,2", *tiny("runner.max_iterations=0")], tmp_path)
     out, err = proc.communicate(timeout=300)
     assert proc.returncode == 0 and "Traceback" not in out + err, (out + err)[-3000:]
-    runs = sorted((tmp_path / "logs" / "moving_platform" / "lasmp").iterdir())
+    runs = sorted((tmp_path / "logs" / "moving_platform" / "lasmp_plus").iterdir())
     assert len(runs) == 2 and all((r / "config.yaml").exists() for r in runs), (out + err)[-3000:]
     seeds = sorted(re.search(r"^seed: (\d+)$", (r / "config.yaml").read_text(), re.M).group(1) for r in runs)
     assert seeds == ["1", "2"]

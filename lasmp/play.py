@@ -338,7 +338,8 @@ def play(args, outputs: Outputs) -> int:
             writer.abort()  # a failed or interrupted run: no partial video
         for c in reversed(closers):
             c.close()
-    print(summary_line(stats, env.num_envs), flush=True)
+    if stats["steps"]:  # an export alone (--steps 0) played nothing: no line about it
+        print(summary_line(stats, env.num_envs), flush=True)
     if video:
         print(f"wrote {video[1].frames} frames to {args.video}", flush=True)
     if shots:

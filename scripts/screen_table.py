@@ -97,4 +97,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except ep.EpisodesFileError as err:  # a record not regenerated yet: the one line that says how
+        raise SystemExit(f"error: {err}") from None

@@ -237,12 +237,14 @@ def train(method: str, seed: int, until: int | None = None) -> None:
 
 
 def record_run(method: str, seed: int, at: int) -> None:
-    """Beside the run's evaluation: its config, its policy checkpoint at 'at' iterations (the
-    networks and normalizers, 1.8 MB; the full checkpoint, with the envs' running state, stays in
-    runs/) and its learning curve to 'at' (lasmp.eval.curves' windows of 10 iterations)."""
+    """Beside the run's evaluation: its config, its policy at 'at' iterations in the light form (the
+    actor and its normalizers, 0.96 MB, lasmp.light_checkpoint; the full checkpoint, with the critic,
+    the optimizers and the envs' running state, stays in runs/) and its learning curve to 'at'
+    (lasmp.eval.curves' windows of 10 iterations): a run adds about 1 MB to the repository."""
     from lasmp.algo.checkpoint import policy_checkpoint
     from lasmp.eval.curves import read_scalars, truncated, windows
     from lasmp.eval.report import atomic_write_text
+    from lasmp.light_checkpoint import convert_in_place
 
     d, out = run_dir(method, seed), result_dir(method, seed, at)
     out.mkdir(parents=True, exist_ok=True)
@@ -250,6 +252,7 @@ def record_run(method: str, seed: int, at: int) -> None:
     policy = out / f"policy_{at - 1}.pt"
     if not policy.exists():
         policy_checkpoint(saved_at(d, at - 1), policy)
+    convert_in_place(policy)  # a light one is left as it is
     rows = windows(truncated(read_scalars(d), at - 1), 10)
     curves = {"run_dir": str(d.relative_to(ROOT)), "windows": rows}
     atomic_write_text(out / f"curves_{at}.json", json.dumps(curves))
@@ -355,14 +358,17 @@ def summary_args() -> list[str]:
 def first_collision_rate(method: str, seed: int) -> float | None:
     """The collision rate over Xi_eval's first FLOAT32_EPISODES episodes of a first-pass run's
     evaluation (None when it is not evaluated): the breakdown's count, whether the evaluation covered
-    those episodes alone or all 10,000."""
+    those episodes alone or all 10,000. An evaluated run whose records are not regenerated yet raises
+    EpisodesFileError saying how to regenerate them."""
     from lasmp.eval.breakdown import breakdown, first_episodes
     from lasmp.eval.episodes import episodes_path, read_csv
 
-    path = episodes_path(result_dir(method, seed, BUDGET, root=FIRST_PASS))
-    if not path.exists():
+    d = result_dir(method, seed, BUDGET, root=FIRST_PASS)
+    if not (d / "metrics.json").exists():
         return None
-    b = breakdown(first_episodes(read_csv(path), FLOAT32_EPISODES))
+    b = breakdown(
+        first_episodes(read_csv(episodes_path(d)), FLOAT32_EPISODES)
+    )  # missing: says how to regenerate
     return b["collisions"] / b["episodes"]
 
 
@@ -592,7 +598,12 @@ def main(argv=None) -> None:
                 return
         print("the study is complete")
     elif args.cmd == "compare":
-        print(compare())
+        from lasmp.eval.episodes import EpisodesFileError
+
+        try:
+            print(compare())
+        except EpisodesFileError as err:
+            raise SystemExit(f"error: {err}") from None
     elif args.cmd == "table":
         print(headline() if args.headline else table(wide=args.wide, paper=args.paper))
     elif args.cmd == "ordering":

@@ -109,7 +109,9 @@ def test_export_onnx_matches_torch_and_says_nothing_else(run_dir, loaded, tmp_pa
         registry.removeHandler(handler)
     assert not logged and not warned, (logged, [str(w.message) for w in warned])
     path = tmp_path / "policy.onnx"
-    assert str(path) in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert str(path) in out
+    assert "played" not in out  # an export alone plays no step, and says nothing of playing
     assert sorted(os.listdir(tmp_path)) == [
         "policy.json",
         "policy.onnx",

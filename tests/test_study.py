@@ -316,7 +316,9 @@ def test_compare_tabulates_both_learners_of_the_first_pass_per_seed_from_their_c
         t["collided"] = np.r_[np.arange(20) < collided_first_20, np.ones(4)].astype(
             float
         )  # 20-23 not counted
-        ep.write_csv(study.result_dir(method, seed, 450, root=study.FIRST_PASS) / "episodes.csv", t)
+        d = study.result_dir(method, seed, 450, root=study.FIRST_PASS)
+        ep.write_csv(d / "episodes.csv", t)
+        evaluated(d)
 
     for seed in (0, 1):
         curves(study, "lasmp", seed, 200 + 10 * seed)
@@ -329,6 +331,20 @@ def test_compare_tabulates_both_learners_of_the_first_pass_per_seed_from_their_c
     assert table[6] == "| 200-249 | 0.90 (level 6) | 0.90 (level 6) | 0.90 (level 5) | 0.90 (level 5) |"
     assert table[-2] == "| first window above level 5 | 200 | 210 | 300 | 300 |"
     assert table[-1] == "| collision, Xi_eval's first 20 | 0.250 | 0.500 | 0.300 | not evaluated |"
+
+
+def test_compare_says_how_to_regenerate_an_evaluated_runs_missing_records(study):
+    for seed in (0, 1):
+        curves(study, "lasmp", seed, 200)
+        curves(study, "lasmp_float32", seed, 300)
+    d = study.result_dir("lasmp", 0, 450, root=study.FIRST_PASS)
+    evaluated(d)  # its metrics.json, not its per-episode records
+    with pytest.raises(SystemExit) as stop:
+        study.main(["compare"])
+    assert str(stop.value) == (
+        f"error: {d / 'episodes.csv.gz'}: no such file; per-episode records are derived data: regenerate "
+        f"them with `python -m lasmp.eval.regenerate {d}` (or evaluate.py writes them beside metrics.json)"
+    )
 
 
 def test_compare_names_the_missing_run(study):

@@ -177,6 +177,23 @@ def test_a_missing_record_is_said_in_one_line_with_the_command_that_regenerates_
     assert f"regenerate them with `python -m lasmp.eval.regenerate {tmp_path}`" in err
 
 
+def test_git_keeps_the_records_under_results_and_the_export_folder_out():
+    paths = [
+        "results/study/x/seed0/episodes.csv.gz",
+        "results/x/mirror/episodes_mirror.csv.gz",
+        "deploy/policy.onnx",
+    ]
+    out = subprocess.run(["git", "check-ignore", *paths], cwd=ROOT, capture_output=True, text=True)
+    assert out.stdout.split() == paths
+    tracked = subprocess.run(
+        ["git", "ls-files", "*episodes.csv.gz"], cwd=ROOT, capture_output=True, text=True
+    )
+    # the real-motion suite's records stay: regenerate replays Xi_eval evaluations only
+    assert all(p.startswith("results/real_motion/") for p in tracked.stdout.split())
+    kept = ["results/real_motion/x/episodes.csv.gz"]
+    assert subprocess.run(["git", "check-ignore", *kept], cwd=ROOT, capture_output=True).returncode == 1
+
+
 def test_the_policy_is_found_beside_the_evaluation_above_it_or_in_the_r_s_runs_directory(tmp_path):
     seed = tmp_path / "study" / "lasmp_plus" / "seed0"
     (seed / "curve" / "it449").mkdir(parents=True)

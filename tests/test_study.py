@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 from testkit import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -460,3 +461,26 @@ def test_ordering_calls_two_rows_ordered_only_when_their_three_seed_intervals_ar
         ["w/o platform velocity estimates", "3", "overlap"],  # 0.06-0.10 touches 0.10-0.12
         ["w/o explicit estimator", "3", "below"],
     ]
+
+
+def test_a_recorded_run_keeps_its_policy_in_the_light_form_beside_its_config_and_learning_curve(
+    tmp_path, monkeypatch
+):
+    from testkit import tiny
+
+    from lasmp.algo.checkpoint import read_checkpoint
+    from lasmp.light_checkpoint import LIGHT_KIND
+    from lasmp.train import train
+
+    mod = load_script("scripts/study.py")
+    monkeypatch.setattr(mod, "ROOT", tmp_path)
+    monkeypatch.setattr(mod, "RUNS", tmp_path / "runs" / "study")
+    monkeypatch.setattr(mod, "RESULTS", tmp_path / "results" / "study")
+    train(tiny(mod.run_dir("lasmp_plus", 0), plain=True))  # 2 iterations: model_1.pt
+    mod.record_run("lasmp_plus", 0, 2)
+    out = mod.result_dir("lasmp_plus", 0, 2)
+    policy = read_checkpoint(out / "policy_1.pt")
+    full = read_checkpoint(mod.run_dir("lasmp_plus", 0) / "model_1.pt")
+    assert policy["kind"] == LIGHT_KIND and policy["critic_state_dict"] == {}
+    assert all(torch.equal(policy["actor_state_dict"][k], v) for k, v in full["actor_state_dict"].items())
+    assert {p.name for p in out.iterdir()} == {"config.yaml", "policy_1.pt", "curves_2.json"}

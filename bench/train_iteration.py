@@ -7,6 +7,9 @@ object with the seconds per iteration of each part, the end-to-end policy steps 
 learner it ran (`algo.precision` and what it resolved to: bfloat16 autocast, fused Adam, compiled
 MLPs). The untimed warm-up iterations take the compilation (and any recompilation) out of the
 timing; `compiles_timed` counts the graphs torch.compile still built while timing (should be 0).
+Then one in-training validation (runner.validation_episodes of the validation benchmark, after a first,
+untimed one that builds its env) is timed: `validation_share` is its part of the wall time at the
+config's runner.validation_interval, validation_s / (validation_s + interval * s_per_iteration).
 
     python bench/train_iteration.py --json [--num-envs 1024] [--iterations 3] [--warmup 2] [override ...]
     python bench/train_iteration.py --json algo.precision=float32
@@ -59,6 +62,7 @@ def main(argv=None) -> dict:
     p.add_argument("--backend", choices=("cpu", "warp"), default=None, help="physics backend (env.backend)")
     p.add_argument("--device", default=None, help="learner device, and the warp backend's (cpu, cuda[:N])")
     p.add_argument("--json", action="store_true")
+    p.add_argument("--no-validation", action="store_true", help="skip timing the in-training validation")
     p.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. policy=no_alignment_command")
     args = p.parse_args(argv)
     register_configs()
@@ -109,12 +113,34 @@ def main(argv=None) -> dict:
         # the learner's share against physics (its target: docs/performance.md#training)
         "learner_over_physics": round(totals["update_ppo_and_roa"] / totals["physics"], 3),
     }
+    if runner.validator is not None and not args.no_validation:
+        result.update(validation_cost(runner, result["s_per_iteration"]))
     if args.json:
         print(json.dumps(result | {"learner": plan.line()}))
     else:
         for k, v in result.items():
             print(f"{k:>20}: {v}")
     return result
+
+
+def validation_cost(runner, s_per_iteration: float) -> dict:
+    """One in-training validation of the runner's current policy, timed warm, and its share of a run."""
+    from lasmp.algo.checkpoint import obs_layout
+
+    def validate():
+        layout = obs_layout(runner.env.get_observations())
+        return runner.validator(0, runner.alg.actor.state_dict(), layout, runner.env.num_actions).seconds
+
+    first = validate()  # builds the validation env (and the benchmark file, on first use)
+    seconds = validate()
+    interval = runner.validation_interval
+    return {
+        "validation_episodes": runner.validator.num_episodes,
+        "validation_interval": interval,
+        "validation_first_s": round(first, 3),
+        "validation_s": round(seconds, 3),
+        "validation_share": round(seconds / (seconds + interval * s_per_iteration), 4),
+    }
 
 
 if __name__ == "__main__":

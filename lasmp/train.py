@@ -60,15 +60,28 @@ def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunne
     env = make_env(
         cfg if rank == 0 else dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, seed=seed))
     )
+    full_config = to_plain(cfg)
     return LasmpRunner(
         env,
         rsl_rl_cfg(cfg),
         log_dir=log_dir,
         device=cfg.device,
-        full_config=to_plain(cfg),
+        full_config=full_config,
         max_fault_fraction=cfg.runner.max_fault_fraction,
         keep_full=cfg.runner.keep_full,
+        validator=make_validator(cfg, full_config) if rank == 0 else None,
+        validation_interval=cfg.runner.validation_interval,
     )
+
+
+def make_validator(cfg: TrainCfg, full_config: dict):
+    """The in-training validator of a moving-platform run (None when validation is off, or for another
+    task: the validation benchmark is the moving platform's)."""
+    if cfg.runner.validation_interval == 0 or cfg.task != "moving_platform":
+        return None
+    from lasmp.eval.validation import Validator
+
+    return Validator(full_config, cfg.runner.validation_episodes)
 
 
 def default_log_dir(cfg: TrainCfg) -> str:

@@ -167,6 +167,9 @@ class AlgoCfg:
             )
 
 
+MAX_VALIDATION_EPISODES = 2_000  # the validation benchmark's size (lasmp.eval.benchmark.VALIDATION)
+
+
 @dataclass
 class RunnerCfg:
     num_steps_per_env: int = 12  # 0.24 s of data per env per iteration, as in the paper
@@ -187,6 +190,12 @@ class RunnerCfg:
     logger: str = "tensorboard"
     wandb_project: str = "lasmp"  # the W&B project (the entity: $WANDB_USERNAME, else your default)
     neptune_project: str = "lasmp"  # the Neptune project, under the workspace $NEPTUNE_USERNAME
+    # (ours) in-training validation (lasmp/eval/validation.py): after every validation_interval-th iteration
+    # (e.g. 49, 99, ... at 50) the policy plays the validation benchmark's first validation_episodes episodes;
+    # the run keeps policy_best.pt and validation.json. 0: never. The cost at the default:
+    # docs/performance.md#in-training-validation
+    validation_interval: int = 50
+    validation_episodes: int = 256
 
     def validate(self, p: str = "runner") -> None:
         if self.num_steps_per_env < 1 or self.max_iterations < 0 or self.save_interval < 1:
@@ -195,6 +204,15 @@ class RunnerCfg:
             )
         if type(self.keep_full) is not int or self.keep_full < 1:
             raise ConfigError(f"{p}.keep_full must be an integer >= 1, got {self.keep_full!r}")
+        if type(self.validation_interval) is not int or self.validation_interval < 0:
+            raise ConfigError(
+                f"{p}.validation_interval must be an integer >= 0 (0: no validation), got {self.validation_interval!r}"
+            )
+        if type(self.validation_episodes) is not int or not 1 <= self.validation_episodes <= MAX_VALIDATION_EPISODES:
+            raise ConfigError(
+                f"{p}.validation_episodes must be an integer in [1, {MAX_VALIDATION_EPISODES}] (the validation "
+                f"benchmark's episodes), got {self.validation_episodes!r}"
+            )
         if not 0 <= self.max_fault_fraction <= 1:
             raise ConfigError(f"{p}.max_fault_fraction must be in [0, 1], got {self.max_fault_fraction}")
         validate_logger(self)

@@ -64,6 +64,7 @@ def test_train_iteration_bench_prints_the_time_breakdown(tmp_path):
             "--json",
             "torch_threads=1",
             "policy.actor_hidden_dims=[32,32,32]",
+            "runner.validation_episodes=4",
         ],
         capture_output=True,
         text=True,
@@ -72,6 +73,10 @@ def test_train_iteration_bench_prints_the_time_breakdown(tmp_path):
         timeout=300,
     )
     result = json.loads(out.stdout)  # --json: one JSON object and nothing else
+    # one validation of 4 episodes, timed warm, and its share of a run at the default interval
+    assert (result["validation_episodes"], result["validation_interval"]) == (4, 50)
+    share = result["validation_s"] / (result["validation_s"] + 50 * result["s_per_iteration"])
+    assert result["validation_s"] > 0 and result["validation_share"] == pytest.approx(share, abs=1e-4)
     parts = ("physics_s", "policy_inference_s", "env_other_s", "update_ppo_s", "update_roa_s")
     assert all(result[k] >= 0 for k in parts)
     assert result["physics_s"] > 0 and result["update_ppo_s"] > 0 and result["update_roa_s"] > 0

@@ -277,6 +277,15 @@ def is_policy_only(data: dict) -> bool:
     return data.get("kind") == "policy" or "optimizer_state_dict" not in data
 
 
+def policy_only(data: dict, source: str) -> dict:
+    """A policy checkpoint's content from a checkpoint's `data`: without the optimizers' states and the
+    envs' running state (the task's state, such as the curriculum, stays); `source` says where from."""
+    slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
+    slim["env_state"] = {k: v for k, v in (data.get("env_state") or {}).items() if k != "run"}
+    slim.update(kind="policy", source=source)
+    return slim
+
+
 def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False) -> Path:
     """Write the policy checkpoint of `src` (a checkpoint or run directory) to `dst`: everything but
     the optimizers' states and the envs' running state (networks with their normalizers, config,
@@ -294,11 +303,7 @@ def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False) -> 
         raise CheckpointError(f"{dst} {what}: give another OUT, or --force to overwrite it")
     _out_file(dst, force)
     data = read_checkpoint(src)
-    slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
-    slim["env_state"] = {
-        k: v for k, v in (data.get("env_state") or {}).items() if k != "run"
-    }  # task state only
-    slim.update(kind="policy", source=f"{Path(data['path']).name} (iteration {data['iter']})")
+    slim = policy_only(data, f"{Path(data['path']).name} (iteration {data['iter']})")
     check_finite(slim, f"refusing to write {dst}")
     atomic_torch_save(slim, dst)
     return Path(dst)

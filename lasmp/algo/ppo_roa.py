@@ -48,7 +48,7 @@ from tensordict import TensorDict
 
 from lasmp.algo.checkpoint import check_finite
 from lasmp.algo.precision import resolve_precision
-from lasmp.algo.symmetry import mirror_augment, supports_mirror
+from lasmp.algo.symmetry import MirrorAugmentation, mirror_augment, supports_mirror
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
 
 
@@ -128,9 +128,10 @@ class PPOROA(PPO):
             critic,
             RoaRolloutStorage.like(storage),
             use_mixed_precision=plan.bf16_autocast,
-            symmetry_cfg=symmetry_cfg,
+            symmetry_cfg=None,  # ours below: rsl_rl's, without its second forward pass for a logged loss
             **kwargs,
         )
+        self.symmetry = MirrorAugmentation(**symmetry_cfg) if symmetry_cfg else None
         self._fused = plan.fused_adam
         if plan.fused_adam:  # the same Adam in one fused kernel; on a CPU PyTorch otherwise loops per tensor
             self.optimizer = torch.optim.Adam(

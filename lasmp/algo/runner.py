@@ -18,6 +18,13 @@
   before rsl_rl's own save of that iteration). These are the loop's only calls, per step and per
   iteration, into an object the runner chooses; rsl_rl offers no hook, and overriding `learn`
   would copy its loop.
+- Validation (ours): after every `validation_interval`-th iteration (its number + 1 a multiple), a
+  validator (built by the caller: `lasmp.eval.validation.Validator`) scores the current actor on the
+  validation benchmark. The runner logs `Val/*` (TensorBoard and a console line), rewrites the run's
+  `validation.json` (every score with its env-steps and wall-clock seconds, and the best) and keeps
+  `policy_best.pt`, the policy checkpoint of the best score (the lowest collision rate, the height
+  violation the tie-break), rewritten only on an improvement. The scores and the best travel in every
+  checkpoint, so a resume goes on from the best so far.
 - Disk: after each save into the run directory the newest `keep_full` full checkpoints stay, older
   ones become policy checkpoints (`keep_newest_full`), and a line names them.
 - Console (`lasmp.algo.console`): one line per network instead of rsl_rl's printout of every layer,
@@ -26,6 +33,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import signal
 import sys
 import threading
@@ -45,6 +54,7 @@ from lasmp.algo.checkpoint import (
     keep_newest_full,
     not_fitting,
     obs_layout,
+    policy_only,
     read_checkpoint,
     refuse_policy_only,
     rng_state,
@@ -52,8 +62,11 @@ from lasmp.algo.checkpoint import (
 )
 from lasmp.algo.console import OneLineLogger, network_line, without_network_printout
 from lasmp.algo.rsl_compat import OnPolicyRunnerCompat
+from lasmp.atomic import atomic_open
 
 INTERRUPT_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+BEST_POLICY = "policy_best.pt"  # the run's policy of the best validation score
+VALIDATION_FILE = "validation.json"  # the run's validation curve
 
 
 def _array_bytes(obj, seen: set[int] | None = None) -> int:
@@ -104,7 +117,11 @@ class LasmpRunner(OnPolicyRunnerCompat):
         full_config: dict | None = None,
         max_fault_fraction: float = 0.5,
         keep_full: int = 2,
+        validator=None,
+        validation_interval: int = 0,
     ):
+        """`validator(iteration, actor_state_dict, obs_layout, num_actions)` -> a score with `key()`
+        (lower is better) and plain fields; called every `validation_interval` iterations (0: never)."""
         with without_network_printout(lambda: getattr(self, "alg", None)):
             super().__init__(env, train_cfg, log_dir=log_dir, device=device)
         if self.gpu_global_rank == 0:
@@ -130,6 +147,12 @@ class LasmpRunner(OnPolicyRunnerCompat):
         self.logger.step_done = self._check_faults
         self.logger.iteration_done = self._after_iteration
         self._signal: int | None = None
+        self.validator = validator
+        self.validation_interval = validation_interval if validator is not None else 0
+        self.validation_history: list[dict] = []  # every score of the run, resumes included
+        self.validation_best: dict | None = None  # the best score so far (its record)
+        self._wall_before_s = 0.0  # the run's training seconds before this command (from its checkpoint)
+        self._learn_start_s: float | None = None
 
     # -- data-parallel training (lasmp.algo.distributed) -------------------------------------------
     def configure_ranks(self) -> None:
@@ -236,8 +259,56 @@ class LasmpRunner(OnPolicyRunnerCompat):
             flush=True,
         )
 
+    # -- validation -------------------------------------------------------------------------------
+    def wall_s(self) -> float:
+        """The run's training seconds so far: its earlier commands' (from the checkpoint) and this one's."""
+        now = 0.0 if self._learn_start_s is None else time.perf_counter() - self._learn_start_s
+        return self._wall_before_s + now
+
+    def _validate_if_due(self, it: int) -> None:
+        """Score the policy of iteration `it` when due; log it, record it, keep the best policy."""
+        interval = self.validation_interval
+        if interval <= 0 or (it + 1) % interval:
+            return
+        score = self.validator(
+            it, self.alg.actor.state_dict(), obs_layout(self.env.get_observations()), self.env.num_actions
+        )
+        env_steps = (it + 1) * self.cfg["num_steps_per_env"] * self.env.num_envs * self.gpu_world_size
+        record = {**dataclasses.asdict(score), "env_steps": env_steps, "wall_s": round(self.wall_s(), 3)}
+        improved = self.validation_best is None or score.key() < tuple(
+            self.validation_best[k] for k in ("collision_rate", "height_violation_rate")
+        )
+        self.validation_history.append(record)
+        if improved:
+            self.validation_best = record
+        run_dir = self.logger.log_dir
+        if run_dir is not None:
+            if improved:
+                data = self.checkpoint_data(None, str(Path(run_dir) / BEST_POLICY), run_state=False)
+                source = f"iteration {it}, the best validation score so far"
+                atomic_torch_save(policy_only(data, source), Path(run_dir) / BEST_POLICY)
+            with atomic_open(Path(run_dir) / VALIDATION_FILE, "w") as f:
+                json.dump({"best": self.validation_best, "history": self.validation_history}, f, indent=1)
+        writer = self.logger.writer
+        if writer is not None:
+            for name in ("collision_rate", "height_violation_rate", "world_tilt_rad"):
+                writer.add_scalar(f"Val/{name}", record[name], it)
+        best = self.validation_best
+        print(
+            f"validation it {it}: collision {score.collision_rate:.3f} | height {score.height_violation_rate:.3f}"
+            f" | tilt {score.world_tilt_rad:.3f} rad | "
+            + (
+                f"new best, {BEST_POLICY}"
+                if improved
+                else f"best {best['collision_rate']:.3f} (it {best['iteration']})"
+            )
+            + f" | {score.seconds:.1f} s",
+            flush=True,
+        )
+
     def _after_iteration(self, it: int) -> None:
         self._faults_before = getattr(self.env, "fault_count", 0)  # the next rollout's faults count from here
+        self._validate_if_due(it)
         stop = self._share_iteration_end(it) if self.is_distributed else self._signal
         if stop is None:
             return
@@ -255,6 +326,7 @@ class LasmpRunner(OnPolicyRunnerCompat):
         if threading.current_thread() is threading.main_thread():
             previous = {s: signal.signal(s, self._on_signal) for s in INTERRUPT_SIGNALS}
         self._signal = None
+        self._learn_start_s = time.perf_counter()
         self._final_iteration = self.current_learning_iteration + num_learning_iterations - 1
         self._faults_before = getattr(self.env, "fault_count", 0)
         try:
@@ -269,6 +341,7 @@ class LasmpRunner(OnPolicyRunnerCompat):
         finally:
             for s, handler in previous.items():
                 signal.signal(s, handler)
+            self._wall_before_s, self._learn_start_s = self.wall_s(), None
 
     # -- checkpoints -------------------------------------------------------------------------------
     def save(self, path: str, infos: dict | None = None) -> None:
@@ -287,9 +360,10 @@ class LasmpRunner(OnPolicyRunnerCompat):
         independent of the writer."""
         return _array_bytes(self.checkpoint_data(None, None))
 
-    def checkpoint_data(self, infos: dict | None, path: str | None) -> dict:
+    def checkpoint_data(self, infos: dict | None, path: str | None, run_state: bool = True) -> dict:
         """What a checkpoint holds; a non-finite network or optimizer state is refused (FloatingPointError
-        naming `path`, where given), so that the last good checkpoint stays."""
+        naming `path`, where given), so that the last good checkpoint stays. Without `run_state` the
+        envs' running state is left out (a policy checkpoint drops it anyway)."""
         data = self.alg.save()
         if path is not None:
             check_finite(data, f"refusing to save {path}")
@@ -300,9 +374,14 @@ class LasmpRunner(OnPolicyRunnerCompat):
             config=self.full_config,
             obs_layout=obs_layout(self.env.get_observations()),
             num_actions=self.env.num_actions,
-            env_state=self.env.state_dict(),
+            env_state=self.env.state_dict(run=run_state),
             rng_state=rng_state(self.env.rng),
             episode_log_state=self.logger.episode_log_state(),
+            validation={
+                "history": self.validation_history,
+                "best": self.validation_best,
+                "wall_s": self.wall_s(),
+            },
         )
         if self.is_distributed:  # every rank's envs, so that a resume of the job continues each of them
             data["other_ranks"] = self._other_ranks
@@ -345,6 +424,11 @@ class LasmpRunner(OnPolicyRunnerCompat):
                 restored = self.env.load_state_dict(data["env_state"], run=run)
                 if restored and data.get("episode_log_state"):
                     self.logger.load_episode_log_state(data["episode_log_state"])
+        if data.get("validation"):  # older checkpoints lack it: the scores start afresh
+            saved = data["validation"]
+            self.validation_history = list(saved["history"])
+            self.validation_best = saved["best"]
+            self._wall_before_s = float(saved["wall_s"])
         if data.get("rng_state"):  # older checkpoints lack it: the streams then restart from the seed
             with not_fitting(f"{where}: its random state cannot be restored"):
                 set_rng_state(data["rng_state"], self.env.rng)

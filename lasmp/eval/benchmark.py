@@ -39,9 +39,17 @@ Checked on load (:func:`load`), besides its structure: every robot value lies in
 range, and every array is what the recorded seed and sizes generate (``_check_regenerates`` says
 why), so an edited file (Kp and Kd swapped, rows reordered) is refused instead of evaluated.
 
-Make it::
+The validation benchmark (ours, docs/evaluation.md#validation-and-test): 2,000 episodes drawn exactly
+as Xi_eval is (this generator, the testing ranges, the same robots' count) from a seed of its own,
+`VALIDATION.seed`. Every choice (a candidate, a budget, a checkpoint, the shipped seed) is made on it;
+Xi_eval is read only for a final row. A validation file whose seed is Xi_eval's is refused
+(`check_validation`): `load` already holds every array to what its seed draws, so a file with another
+seed cannot hold Xi_eval's motions or robots.
 
-    python -m lasmp.eval.benchmark generate            # -> benchmarks/xi_eval.npz, seed 0 (--force to replace)
+Make them::
+
+    python -m lasmp.eval.benchmark generate                  # -> benchmarks/xi_eval.npz, seed 0 (--force to replace)
+    python -m lasmp.eval.benchmark generate --set validation # -> benchmarks/validation.npz, seed 1, 2,000 episodes
     python -m lasmp.eval.benchmark info benchmarks/xi_eval.npz [--json]
 """
 
@@ -100,6 +108,24 @@ MAX_ROBOTS = 100_000
 
 class BenchmarkFileError(ValueError):
     """A benchmark file is missing or malformed; the message names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class BenchmarkSet:
+    """A named benchmark: where its file lives by default and what draws it."""
+
+    name: str
+    path: str
+    seed: int
+    num_trajectories: int
+    num_robots: int = DEFAULT_NUM_ROBOTS
+
+
+# the test set (the paper's Xi_eval: read only for a final row) and the validation set (ours: every
+# choice is made on it), drawn by the same generator from different seeds
+XI_EVAL = BenchmarkSet("xi_eval", DEFAULT_PATH, 0, DEFAULT_NUM_TRAJECTORIES)
+VALIDATION = BenchmarkSet("validation", os.path.join("benchmarks", "validation.npz"), 1, 2_000)
+SETS = {s.name: s for s in (XI_EVAL, VALIDATION)}
 
 
 @dataclass
@@ -162,6 +188,41 @@ def generate(
     traj = T.sample(num_trajectories, T.ranges_for_split("test"), np.random.default_rng([seed, 0]))
     robots = sample_intrinsics(num_robots, DomainRandCfg().test, np.random.default_rng([seed, 1]))
     return Benchmark(traj, robots, int(seed))
+
+
+def generate_set(which: BenchmarkSet) -> Benchmark:
+    """The benchmark `which` names, drawn from its seed and sizes."""
+    return generate(which.num_trajectories, which.num_robots, which.seed)
+
+
+def check_validation(bench: Benchmark, path) -> Benchmark:
+    """`bench` as a validation benchmark: refused (BenchmarkFileError) if it is Xi_eval's draw, since a
+    choice made on it would be made on the test set. A loaded file holds exactly what its seed draws
+    (`load`), so Xi_eval's seed is the one way a file can hold Xi_eval's motions and robots."""
+    if bench.seed == XI_EVAL.seed:
+        raise BenchmarkFileError(
+            f"{path}: drawn from seed {bench.seed}, Xi_eval's: the validation benchmark must not be the test "
+            f"set (choices are made on validation; Xi_eval is read only for a final row). Make it with "
+            f"`python -m lasmp.eval.benchmark generate --set validation` (seed {VALIDATION.seed})"
+        )
+    return bench
+
+
+def load_or_make(which: BenchmarkSet, path=None) -> Benchmark:
+    """The benchmark `which` from `path` (default: its own file, drawn and written on first use); a
+    validation set is checked not to be Xi_eval (`check_validation`)."""
+    path = os.fspath(path or which.path)
+    if os.path.lexists(path) or path != which.path:
+        bench = load(path)
+    else:
+        print(
+            f"{path} not found: generating it (seed {which.seed}, {which.num_trajectories:,} trajectories, "
+            f"{which.num_robots:,} robots)",
+            file=sys.stderr,
+        )
+        bench = generate_set(which)
+        save(path, bench)
+    return check_validation(bench, path) if which is VALIDATION else bench
 
 
 def _arrays(bench: Benchmark) -> dict[str, np.ndarray]:
@@ -318,11 +379,17 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m lasmp.eval.benchmark", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
     pg = sub.add_parser("generate", help="draw Xi_eval and write it")
-    pg.add_argument("--out", default=DEFAULT_PATH, help=f"a .npz file (default {DEFAULT_PATH})")
+    pg.add_argument(
+        "--set",
+        choices=sorted(SETS),
+        default=XI_EVAL.name,
+        help="which benchmark: its file, seed and sizes (default xi_eval); the options below override them",
+    )
+    pg.add_argument("--out", help=f"a .npz file (default: the set's, {DEFAULT_PATH} for xi_eval)")
     pg.add_argument("--force", action="store_true", help="overwrite --out if it exists")
-    pg.add_argument("--seed", type=seed_arg, default=0, help="in [0, 2**32 - 1]")
-    pg.add_argument("--num-trajectories", type=int_arg(1, MAX_TRAJECTORIES), default=DEFAULT_NUM_TRAJECTORIES)
-    pg.add_argument("--num-robots", type=int_arg(1, MAX_ROBOTS), default=DEFAULT_NUM_ROBOTS)
+    pg.add_argument("--seed", type=seed_arg, help="in [0, 2**32 - 1] (default: the set's)")
+    pg.add_argument("--num-trajectories", type=int_arg(1, MAX_TRAJECTORIES), help="default: the set's")
+    pg.add_argument("--num-robots", type=int_arg(1, MAX_ROBOTS), help="default: the set's")
     pg.add_argument("--json", action="store_true", help="print one JSON object only")
     pi = sub.add_parser("info", help="statistics and sha256 of an existing file")
     pi.add_argument("file")
@@ -330,8 +397,15 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     try:
         if args.cmd == "generate":
-            path = check_out_file(args.out, suffixes=(".npz",), force=args.force, option="--out")
-            bench = generate(args.num_trajectories, args.num_robots, args.seed)
+            which = SETS[args.set]
+            path = check_out_file(args.out or which.path, suffixes=(".npz",), force=args.force, option="--out")
+            bench = generate(
+                args.num_trajectories or which.num_trajectories,
+                args.num_robots or which.num_robots,
+                which.seed if args.seed is None else args.seed,
+            )
+            if which is VALIDATION:
+                check_validation(bench, path)  # before anything is written
             save(path, bench)
         else:
             path = args.file

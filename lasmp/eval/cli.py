@@ -5,7 +5,8 @@
     python evaluate.py --controller rs --checkpoint RS_PATH       # the R-S policy, zero velocity command
     python evaluate.py --controller rs_oracle --checkpoint RS_PATH  # R-S with the oracle command (below)
     python evaluate.py --suite real_motion --controller stand_still   # ship, bus, train, lift, aircraft
-    options: --benchmark FILE (default benchmarks/xi_eval.npz, made on first use)
+    options: --benchmark xi_eval|validation|FILE (default xi_eval: benchmarks/xi_eval.npz, made on first
+               use; validation: benchmarks/validation.npz, the set every choice is made on)
              --trajectories FILE (any trajectory file; robots still come from the benchmark)
              --num-trajectories K (the first K episodes) --out DIR --force --batch-envs 1024 --seed 0
              --torch-threads 1 (the policy's CPU threads) --no-platform-probe
@@ -55,7 +56,7 @@ from lasmp.eval.run import run_benchmark
 from lasmp.inputs import int_arg, seed_arg
 from lasmp.recipe import recipe_name
 
-DEFAULT_BENCHMARK = Path("benchmarks") / "xi_eval.npz"
+DEFAULT_BENCHMARK = Path(bm.XI_EVAL.path)
 NUM_BATCHES = 10
 
 
@@ -84,15 +85,19 @@ def deep_merge(base: dict, top: dict) -> dict:
     return out
 
 
+def benchmark_arg(text: str) -> Path:
+    """--benchmark: a set's name (xi_eval, validation) stands for its file; anything else is a file."""
+    return Path(bm.SETS[text].path) if text in bm.SETS else Path(text)
+
+
 def load_or_make_benchmark(path: Path):
-    if path.exists():
-        return bm.load(path)
-    if path != DEFAULT_BENCHMARK:
+    """The benchmark file `path`; a set's own file (Xi_eval's, the validation set's) is made on first use."""
+    for which in bm.SETS.values():
+        if path == Path(which.path):
+            return bm.load_or_make(which)
+    if not path.exists():
         raise bm.BenchmarkFileError(f"benchmark file {path} does not exist")
-    print(f"{path} not found: generating it (seed 0, 10,000 trajectories, 1,024 robots)", file=sys.stderr)
-    bench = bm.generate()
-    bm.save(path, bench)
-    return bench
+    return bm.load(path)
 
 
 def build(args, extra_env: dict | None = None, checkpoint: Path | None = None):
@@ -130,10 +135,21 @@ def build(args, extra_env: dict | None = None, checkpoint: Path | None = None):
         raise CheckpointError(
             f"--checkpoint without --controller needs a moving_platform policy, got {cfg.task}"
         )
-    env = MovingPlatformEnv(build_env_cfg(deep_merge(_asdict(cfg.env), overrides), schema=MovingPlatformCfg))
+    env = policy_eval_env(cfg, n, args.seed, extra_env)
     check_compatible(deployed.checkpoint, env)
     method = f"{recipe_name(cfg)} checkpoint {args.checkpoint} ({cfg.policy.name})"
     return env, (lambda obs: policy(obs)), policy, method
+
+
+def policy_eval_env(cfg, num_envs: int, seed: int, extra_env: dict | None = None):
+    """The moving-platform env a policy of config `cfg` (a TrainCfg) is evaluated in: its own env config
+    under the benchmark's overrides (`eval_env_overrides`), `num_envs` envs."""
+    from lasmp.config import build_env_cfg
+    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
+    from lasmp.envs.moving_platform.env import MovingPlatformEnv
+
+    overrides = eval_env_overrides(num_envs, seed, extra_env)
+    return MovingPlatformEnv(build_env_cfg(deep_merge(_asdict(cfg.env), overrides), schema=MovingPlatformCfg))
 
 
 def zero_command(env) -> torch.Tensor:
@@ -175,7 +191,12 @@ def parser() -> argparse.ArgumentParser:
         choices=["stand_still", "rs", "rs_oracle"],
         help="a baseline (default with --checkpoint: the checkpoint's own LAS-MP policy)",
     )
-    p.add_argument("--benchmark", type=Path, default=DEFAULT_BENCHMARK)
+    p.add_argument(
+        "--benchmark",
+        type=benchmark_arg,
+        default=DEFAULT_BENCHMARK,
+        help="xi_eval (the test set, default), validation (the set choices are made on) or a .npz file",
+    )
     p.add_argument("--trajectories", type=Path, help="a trajectory file to play instead of the benchmark's")
     p.add_argument(
         "--num-trajectories", type=int_arg(1), default=None, help="the first K episodes (default: all)"

@@ -34,6 +34,7 @@ from pathlib import Path
 
 from lasmp.algo.checkpoint import latest_checkpoint
 from lasmp.eval import episodes as ep
+from lasmp.eval.benchmark import VALIDATION
 from lasmp.eval.report import atomic_write_text, dumps
 from lasmp.inputs import file_sha256, missing_dirs, size_in_words
 from lasmp.rundir import LOCK_NAME, RunLock
@@ -89,15 +90,17 @@ def checkpoint_file(checkpoint: str | os.PathLike | None) -> Path | None:
 
 def default_out_dir(args, root: Path = Path("eval")) -> Path:
     """eval/<controller> without a checkpoint; else eval/<run directory>-<hash>/<checkpoint stem>
-    [_<controller>], from the checkpoint file (a run directory's latest checkpoint). The hash is of
-    the run directory's resolved path: the same checkpoint always lands in the same place, and two
+    [_<controller>], from the checkpoint file (a run directory's latest checkpoint), plus
+    `_validation` on the validation benchmark (its metrics never land where Xi_eval's do). The hash is
+    of the run directory's resolved path: the same checkpoint always lands in the same place, and two
     checkpoints never share one, whatever their run directories and files are called."""
+    on_validation = "_validation" if Path(getattr(args, "benchmark", None) or "") == Path(VALIDATION.path) else ""
     if args.checkpoint is None:
-        return root / args.controller
+        return root / f"{args.controller}{on_validation}"
     path = checkpoint_file(args.checkpoint).resolve()
     digest = hashlib.sha256(os.fsencode(path.parent)).hexdigest()[:HASH_DIGITS]
     suffix = f"_{args.controller}" if args.controller else ""
-    return root / f"{path.parent.name}-{digest}" / f"{path.stem}{suffix}"
+    return root / f"{path.parent.name}-{digest}" / f"{path.stem}{suffix}{on_validation}"
 
 
 class _Lock(RunLock):

@@ -208,7 +208,10 @@ class RunnerCfg:
             raise ConfigError(
                 f"{p}.validation_interval must be an integer >= 0 (0: no validation), got {self.validation_interval!r}"
             )
-        if type(self.validation_episodes) is not int or not 1 <= self.validation_episodes <= MAX_VALIDATION_EPISODES:
+        if (
+            type(self.validation_episodes) is not int
+            or not 1 <= self.validation_episodes <= MAX_VALIDATION_EPISODES
+        ):
             raise ConfigError(
                 f"{p}.validation_episodes must be an integer in [1, {MAX_VALIDATION_EPISODES}] (the validation "
                 f"benchmark's episodes), got {self.validation_episodes!r}"

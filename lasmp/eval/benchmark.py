@@ -398,7 +398,9 @@ def main(argv=None) -> int:
     try:
         if args.cmd == "generate":
             which = SETS[args.set]
-            path = check_out_file(args.out or which.path, suffixes=(".npz",), force=args.force, option="--out")
+            path = check_out_file(
+                args.out or which.path, suffixes=(".npz",), force=args.force, option="--out"
+            )
             bench = generate(
                 args.num_trajectories or which.num_trajectories,
                 args.num_robots or which.num_robots,

@@ -94,7 +94,9 @@ def default_out_dir(args, root: Path = Path("eval")) -> Path:
     `_validation` on the validation benchmark (its metrics never land where Xi_eval's do). The hash is
     of the run directory's resolved path: the same checkpoint always lands in the same place, and two
     checkpoints never share one, whatever their run directories and files are called."""
-    on_validation = "_validation" if Path(getattr(args, "benchmark", None) or "") == Path(VALIDATION.path) else ""
+    on_validation = (
+        "_validation" if Path(getattr(args, "benchmark", None) or "") == Path(VALIDATION.path) else ""
+    )
     if args.checkpoint is None:
         return root / f"{args.controller}{on_validation}"
     path = checkpoint_file(args.checkpoint).resolve()

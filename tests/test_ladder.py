@@ -1,0 +1,112 @@
+"""scripts/ladder.py: the rungs at equal samples, the table's figures from the curves it names, the figure,
+and a command line that refuses what it cannot use."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from testkit import load_script
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def ladder():
+    return load_script("scripts/ladder.py")
+
+
+def _curve(path: Path, collisions: list[float], steps_per_point: int = 1_000_000) -> None:
+    history = [
+        {
+            "iteration": i,
+            "collision_rate": c,
+            "height_violation_rate": 0.1,
+            "world_tilt_rad": 0.1,
+            "seconds": 1.0,
+            "env_steps": (i + 1) * steps_per_point,
+            "wall_s": 60.0 * (i + 1),
+        }
+        for i, c in enumerate(collisions)
+    ]
+    path.mkdir(parents=True)
+    (path / "validation.json").write_text(
+        json.dumps({"best": min(history, key=lambda r: r["collision_rate"]), "history": history})
+    )
+
+
+def test_the_batch_and_rollout_rungs_train_on_equal_samples_with_the_same_validation_spacing(ladder):
+    for name, rung in ladder.RUNGS.items():
+        samples = rung.iterations * rung.num_envs * rung.steps_per_env
+        assert samples == ladder.SAMPLES, name  # 22.1 M env-steps each
+        spacing = rung.validation_interval * rung.num_envs * rung.steps_per_env
+        assert abs(spacing / (ladder.SAMPLES / ladder.POINTS) - 1) < 0.05, name
+    assert (ladder.RUNGS["base"].iterations, ladder.RUNGS["envs8192"].iterations) == (1_800, 225)
+    cmd = ladder.RUNGS["steps24"].command(10, Path("runs/x"), 900, resume=False)
+    assert "runner.num_steps_per_env=24" in cmd and "runner.max_iterations=900" in cmd and "seed=10" in cmd
+    assert (
+        cmd[-1] != "resume=runs/x" and ladder.RUNGS["base"].command(10, Path("r"), 5, True)[-1] == "resume=r"
+    )
+    assert min(ladder.SEEDS) >= 10  # fresh seeds: no run before the ladder used 10 and up
+
+
+def test_the_table_gives_each_seeds_final_score_their_mean_spread_and_the_differences_from_the_baseline(
+    ladder, tmp_path
+):
+    _curve(tmp_path / "base" / "seed10", [0.5, 0.2, 0.10])
+    _curve(tmp_path / "base" / "seed11", [0.5, 0.3, 0.06])
+    _curve(tmp_path / "envs4096" / "seed10", [0.4, 0.05, 0.07])
+    _curve(tmp_path / "envs4096" / "seed11", [0.4, 0.10, 0.05])
+    rows = {r["rung"]: r for r in ladder.table_rows(ladder.curves(tmp_path))}
+    base, big = rows["base"], rows["envs4096"]
+    assert base["per_seed"] == {"10": 0.10, "11": 0.06} and base["mean"] == pytest.approx(0.08)
+    assert base["spread"] == pytest.approx(0.04) and base["diff_from_base"] == {}
+    assert big["diff_from_base"] == pytest.approx({"10": -0.03, "11": -0.01})
+    assert big["mean_diff_from_base"] == pytest.approx(-0.02) and big["spread"] == pytest.approx(0.02)
+    assert big["best_mean"] == pytest.approx(0.05)  # each seed's lowest point on its curve, averaged
+    assert (big["env_steps"], big["minutes"]) == (3_000_000, 3.0)
+    text = ladder.markdown(list(rows.values()))
+    assert (
+        "| (a) batch | 4,096 envs | 10, 11 | 0.070 / 0.050 | 0.060 | 0.020 | -0.030 / -0.010 (-0.020) |"
+        in text
+    )
+
+
+def test_the_figure_draws_every_collected_rung(ladder, tmp_path):
+    _curve(tmp_path / "base" / "seed10", [0.5, 0.2, 0.1])
+    _curve(tmp_path / "steps48" / "seed10", [0.4, 0.2, 0.1])
+    out = ladder.figure(ladder.curves(tmp_path), tmp_path / "fig" / "scaling.png")
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_truncated_curve_is_one_line_naming_its_file(ladder, tmp_path):
+    path = tmp_path / "base" / "seed10"
+    path.mkdir(parents=True)
+    (path / "validation.json").write_text('{"history": [{"iteration"')
+    with pytest.raises(SystemExit, match=r"seed10/validation.json: not a validation curve"):
+        ladder.curves(tmp_path)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["plan", "--bogus"], "unrecognized arguments: --bogus"),
+        (["train", "base", "3"], "the ladder's seeds are 10, 11, got 3"),
+        (["train", "nope", "10"], "invalid choice: 'nope'"),
+    ],
+)
+def test_the_command_line_refuses_what_it_cannot_use(args, message):
+    out = subprocess.run(
+        [sys.executable, "scripts/ladder.py", *args], cwd=ROOT, capture_output=True, text=True
+    )
+    assert out.returncode == 2 and message in out.stderr
+
+
+def test_help_says_what_the_ladder_is():
+    out = subprocess.run(
+        [sys.executable, "scripts/ladder.py", "--help"], cwd=ROOT, capture_output=True, text=True
+    )
+    assert out.returncode == 0 and "validation benchmark" in out.stdout and "table" in out.stdout

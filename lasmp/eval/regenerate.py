@@ -152,13 +152,14 @@ def evaluate_args(run_dir: Path, result: dict, checkpoint: Path | None, out: Pat
 
 
 def check_benchmark(result: dict) -> None:
-    """The benchmark file must be the one evaluated (its SHA-256), or be made as evaluate.py makes it."""
-    from lasmp.eval.cli import DEFAULT_BENCHMARK
+    """The benchmark file must be the one evaluated (its SHA-256), or be one that evaluate.py makes on
+    first use (Xi_eval's, the validation set's: its hash is checked after the replay)."""
+    from lasmp.eval.benchmark import SETS
 
     bench = Path(result["benchmark"])
     if not bench.is_file():
-        if bench == DEFAULT_BENCHMARK:
-            return  # evaluate.py makes it (seed 0), and its hash is checked after the replay
+        if any(bench == Path(which.path) for which in SETS.values()):
+            return
         raise RegenerateError(f"benchmark file {bench} does not exist (metrics.json names it)")
     got = file_sha256(bench)
     if result.get("benchmark_sha256") and got != result["benchmark_sha256"]:

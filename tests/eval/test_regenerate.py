@@ -211,3 +211,14 @@ def test_the_policy_is_found_beside_the_evaluation_above_it_or_in_the_r_s_runs_d
     )
     with pytest.raises(rg.RegenerateError, match="no policy_149.pt in .* give --checkpoint PATH"):
         rg.committed_policy(seed, {"method": "m", "checkpoint": "runs/x/model_149.pt"})
+
+
+def test_the_benchmark_must_be_the_one_evaluated_or_one_evaluate_makes_on_first_use(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # benchmarks/ absent: Xi_eval's and the validation set's are made on use
+    for name in (bm.XI_EVAL.path, bm.VALIDATION.path):
+        rg.check_benchmark({"benchmark": name, "benchmark_sha256": "0" * 64})
+    with pytest.raises(rg.RegenerateError, match="mine.npz does not exist"):
+        rg.check_benchmark({"benchmark": "mine.npz"})
+    (tmp_path / "mine.npz").write_bytes(b"other")
+    with pytest.raises(rg.RegenerateError, match="is not the benchmark evaluated"):
+        rg.check_benchmark({"benchmark": "mine.npz", "benchmark_sha256": "0" * 64})

@@ -62,7 +62,8 @@ class OneLineLogger(LoggerCompat):
         steps = self.cfg["num_steps_per_env"] * self.num_envs * self.gpu_world_size  # all ranks' env-steps
         extras: dict[str, float] = {}
         episodes = self.take_episode_extras()
-        for key in dict.fromkeys(k for ep in episodes for k in ep):
+        reported = dict.fromkeys(k for ep in episodes for k in ep)  # a rate over an empty window too
+        for key in reported:
             values = [float(ep[key]) for ep in episodes if key in ep]
             values = [v for v in values if v == v]  # nan: a rate over an empty window
             if values:
@@ -90,6 +91,8 @@ class OneLineLogger(LoggerCompat):
         ):
             if key in extras:
                 fields.append(f"{label} {extras[key]:{fmt}}")
+            elif key in reported:  # the task reports it, with no value yet: its column stays in place
+                fields.append(f"{label} {NONE_YET:>4}")
         if "roa_exp" in loss_dict:
             fields.append(f"L_exp {loss_dict['roa_exp']:.4f}")
         if self.iteration_faults is not None:

@@ -75,7 +75,12 @@ def test_progress_lines_number_iterations_as_the_files_show_no_nan_and_no_eta_be
     run, first, _ = runs
     lines = progress(first)
     assert [line.split(" | ")[0] for line in lines] == ["it 0/2", "it 1/2", "it 2/2"]
-    assert "training moving_platform / lasmp: 4 envs, 3 iterations (0\u20132)" in first
+    assert "training moving_platform / LAS-MP+: 4 envs, 3 iterations (0\u20132)" in first
+    # every line has the same columns, a field with no value yet included (the success rate before an
+    # episode has ended)
+    assert len({len(line.split(" | ")) for line in lines}) == 1
+    labels = [[re.sub(r"[-\d.,:/\u2013 ]+", " ", f).strip() for f in line.split(" | ")] for line in lines]
+    assert labels[0] == labels[-1] and "success" in labels[0]
     assert not any("nan" in line for line in lines)
     assert re.search(rf"reward +{NONE_YET} ", lines[0])  # no episode has ended yet
     assert re.search(r"reward +-?\d+\.\d\d ", lines[-1])

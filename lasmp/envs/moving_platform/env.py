@@ -233,6 +233,9 @@ class MovingPlatformEnv(BaseEnv):
             # the stance: the share of envs with all four feet down, and the longest open swing (s)
             "Gait/four_feet_share": float(contact.all(dim=1).to(f32).mean()),
             "Gait/longest_open_swing_s": float(self.t_air_s.max()),
+            # a rate over no episode until one ends at this step (the reset's log then holds it): the
+            # progress line keeps its column before the first episode ends
+            "Episode/success_rate": float("nan"),
         }
         if self.on_step is not None:
             self.on_step(r, collision)

@@ -156,6 +156,9 @@ class PPOROA(PPO):
         # (T, N, k): the estimates each rollout step acted on, and how many steps of this rollout hold them
         self._rollout_estimates: torch.Tensor | None = None
         self._estimate_steps = 0
+        # the estimates of each mini-batch's mirrored samples in this update's PPO pass: (the mini-batch's
+        # observations, the estimates), computed in its first epoch and reused in the others
+        self._mirrored_estimates: dict[int, tuple[TensorDict, torch.Tensor]] = {}
         self.iteration = 0
 
     def process_env_step(self, obs, rewards, dones, extras) -> None:
@@ -180,15 +183,24 @@ class PPOROA(PPO):
 
     def _mirror_batch(self, env, obs=None, actions=None):
         """`mirror_augment`, and for an iteration on the estimates the estimates of the mirrored
-        samples: those of the estimators on the mirrored history (a latent has no mirror map)."""
+        samples: those of the estimators on the mirrored history (a latent has no mirror map).
+
+        PPO's epochs meet the same mini-batches (`RoaRolloutStorage.ppo_pass` gathers each once) and
+        change neither the estimators nor the normalizer, so a mini-batch's mirrored estimates are the
+        same in every epoch: they are computed in its first and reused, bit for bit (five epochs ran
+        the estimators five times over each mirrored mini-batch, most of an update on the estimates)."""
         estimates = None
         if obs is not None and GROUP_DETACHED_ESTIMATES in obs.keys():
+            batch_obs = obs
             estimates = obs[GROUP_DETACHED_ESTIMATES]
             obs = obs.exclude(GROUP_DETACHED_ESTIMATES)
         obs, actions = mirror_augment(env, obs, actions)
         if estimates is not None:
-            mirrored = self.get_policy().detached_estimates(obs[len(estimates) :])
-            obs[GROUP_DETACHED_ESTIMATES] = torch.cat([estimates, mirrored.to(estimates.dtype)])
+            seen = self._mirrored_estimates.get(id(batch_obs))
+            if seen is None or seen[0] is not batch_obs:
+                mirrored = self.get_policy().detached_estimates(obs[len(estimates) :]).to(estimates.dtype)
+                seen = self._mirrored_estimates[id(batch_obs)] = (batch_obs, mirrored)
+            obs[GROUP_DETACHED_ESTIMATES] = torch.cat([estimates, seen[1]])
         return obs, actions
 
     def acts_on_estimates(self, iteration: int) -> bool:
@@ -260,8 +272,11 @@ class PPOROA(PPO):
         if on_estimates:  # the rollout's own estimates, not new ones per mini-batch and epoch
             read[GROUP_DETACHED_ESTIMATES] = self._estimates_of_rollout(stored)
         self._estimate_steps = 0
-        with self.storage.ppo_pass(read):
-            loss_dict = super().update()
+        try:
+            with self.storage.ppo_pass(read):
+                loss_dict = super().update()
+        finally:
+            self._mirrored_estimates.clear()
         loss_dict.update(self.update_roa())
         loss_dict["Policy/acts_on_estimates"] = float(on_estimates)
         loss_dict["Policy/entropy_coef"] = self.entropy_coef

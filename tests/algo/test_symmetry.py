@@ -11,13 +11,13 @@ from lasmp.config import ConfigError
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES
 
 
-def _learner(tmp_path, **symmetry):
+def _learner(tmp_path, epochs: int = 1, **symmetry):
     from lasmp.algo.ppo_roa import PPOROA
     from lasmp.train import make_env
     from lasmp.train_cfg import rsl_rl_cfg
 
     algo = {"estimate_rollout_every": 1, "estimate_rollout_start": 0, "symmetry_cfg": symmetry}
-    cfg = tiny(tmp_path, algo={"num_mini_batches": 2, "num_learning_epochs": 1, **algo})
+    cfg = tiny(tmp_path, algo={"num_mini_batches": 2, "num_learning_epochs": epochs, **algo})
     env = make_env(cfg)
     rsl = rsl_rl_cfg(cfg)
     alg = PPOROA.construct_algorithm(env.get_observations(), env, rsl, cfg.device)
@@ -86,3 +86,32 @@ def test_the_mirror_loss_is_a_finite_term_of_the_update_and_no_symmetry_leaves_r
 def test_a_symmetry_config_that_cannot_work_is_refused_at_start_up(tmp_path, over, message):
     with pytest.raises(ConfigError, match=message):
         tiny(tmp_path, **over)
+
+
+class _Forgetful(dict):
+    """A cache that keeps nothing: every lookup misses."""
+
+    def __setitem__(self, key, value) -> None:
+        pass
+
+
+def test_a_mini_batchs_mirrored_estimates_are_computed_once_per_update_and_learn_the_same_bit_for_bit(
+    tmp_path,
+):
+    def learner(name, forgetful: bool):
+        torch.manual_seed(0)
+        alg, env = _learner(tmp_path / name, use_data_augmentation=True, epochs=3)
+        if forgetful:
+            alg._mirrored_estimates = _Forgetful()
+        calls = []
+        alg.get_policy().implicit_estimator.register_forward_hook(lambda *_: calls.append(1))
+        loss = alg.update()
+        return alg, loss, len(calls)
+
+    cached, loss_cached, calls_cached = learner("cached", False)
+    again, loss_again, calls_again = learner("again", True)
+    # 2 mini-batches x 3 epochs: the mirrored estimates twice instead of six times (and the ROA pass's 2)
+    assert (calls_cached, calls_again) == (2 + 2, 6 + 2)
+    assert loss_cached == loss_again
+    a, b = cached.get_policy().state_dict(), again.get_policy().state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)

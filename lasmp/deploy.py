@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
@@ -62,16 +63,20 @@ def load_policy(
     seed: int | None = 0,
     num_envs: int = 1,
     trajectories: str | None = None,
-    env_overrides: dict | None = None,
+    env_overrides: dict | Callable[[str], dict] | None = None,
     mixin: type | None = None,
 ) -> Deployed:
     """The deployable policy of `path`, a checkpoint file or a run directory (its latest
     model_<N>.pt), with its config for `num_envs` envs and `seed` (None: the run's own), and a
-    trajectory file, and nested env overrides (`mixin`: `build_policy`'s). CheckpointError for a
-    missing, unreadable, hostile or mismatched checkpoint."""
+    trajectory file, and nested env overrides, or a function of the checkpoint's task that gives
+    them (a setting one task's env has and another's lacks) (`mixin`: `build_policy`'s).
+    CheckpointError for a missing, unreadable, hostile or mismatched checkpoint."""
     data = read_checkpoint(path)
+    config = data.get("config") or {}
     if seed is None:
-        seed = (data.get("config") or {}).get("seed", 0)
+        seed = config.get("seed", 0)
+    if callable(env_overrides):
+        env_overrides = env_overrides(config.get("task"))
     cfg = checkpoint_cfg(data, num_envs, seed, trajectories, env_overrides)
     return Deployed(build_policy(data, cfg, mixin), cfg, data)
 
@@ -81,7 +86,7 @@ def load_deploy_env(
     num_envs: int = 1,
     seed: int | None = None,
     trajectories: str | None = None,
-    env_overrides: dict | None = None,
+    env_overrides: dict | Callable[[str], dict] | None = None,
     mixin: type | None = None,
 ):
     """(env, policy, cfg, checkpoint): `load_policy` plus an env of the checkpoint's task with

@@ -277,11 +277,16 @@ def main(argv: list[str] | None = None) -> int:
         return 1
 
 
+def evaluation_episodes(task: str) -> dict:
+    """The env overrides that make a moving-platform checkpoint's episodes those evaluation plays: a
+    training run's hold past T is training's alone. Other tasks (R-S on rough terrain) have no hold."""
+    return {"trajectory": {"hold_s": 0.0}} if task == "moving_platform" else {}
+
+
 def play(args, outputs: Outputs) -> int:
     """main's work once its options and files are checked: load, export, roll out, write."""
     try:
-        # episodes as evaluation plays them: a training run's hold past T is training's alone
-        trajectories, overrides = args.trajectories, {"trajectory": {"hold_s": 0.0}}
+        trajectories, overrides = args.trajectories, evaluation_episodes
         if args.scenario:
             trajectories, overrides = scenario_file(args.scenario)
         try:
@@ -304,8 +309,12 @@ def play(args, outputs: Outputs) -> int:
     print(f"loaded {data['path']} (iteration {data['iter']}, task {cfg.task})", flush=True)
 
     if args.export:
-        metadata = deploy_metadata(policy, cfg, data["iter"], Path(data["path"]).name)
-        path, sidecar = files = export_into(policy, Path(args.out), metadata)
+        try:
+            metadata = deploy_metadata(policy, cfg, data["iter"], Path(data["path"]).name)
+            path, sidecar = files = export_into(policy, Path(args.out), metadata)
+        except ValueError as err:  # a policy the export cannot take (the R-S baseline's command input)
+            print(f"error: --export: {err}", file=sys.stderr)
+            return 2
         outputs.written += files
         print(f"exported {args.export} policy to {path} (metadata in {sidecar})", flush=True)
 

@@ -546,3 +546,16 @@ def test_curriculum_probe_plays_one_episode_per_env_and_zero_noise_sampling_equa
     with pytest.raises(SystemExit) as err:
         probe.main([str(run_dir), "--envs", "0"])
     assert err.value.code == 2
+
+
+def test_the_studys_r_s_checkpoint_plays_and_its_export_is_refused_in_one_line(tmp_path, capsys):
+    # the rough-static config has no trajectory hold: play sets it for moving-platform checkpoints only
+    rs = ROOT / "results" / "study" / "rs" / "seed0" / "policy_449.pt"
+    assert main(["--checkpoint", str(rs), "--steps", "5"]) == 0
+    out = capsys.readouterr().out
+    assert "task rough_static" in out and "played 5 steps" in out
+    # the deployable policy takes the proprioceptive window alone; R-S also needs a velocity command
+    assert main(["--checkpoint", str(rs), "--steps", "0", "--export", "onnx", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --export: ") and "command" in err and "Traceback" not in err
+    assert not any(tmp_path.iterdir())

@@ -5,6 +5,7 @@ run before the ladder used them), the same seeds on every rung so that rungs com
     python scripts/ladder.py plan                 # every run: its command and how far it is
     python scripts/ladder.py train RUNG SEED      # train it (a stopped run resumes from its last save)
     python scripts/ladder.py collect RUNG SEED    # its curve, config, commands and light policies -> results/ladder/
+    python scripts/ladder.py snapshot RUNG SEED   # a run still training: its newest policy (light), curve, commands
     python scripts/ladder.py table [--json]       # the table, from results/ladder/<rung>/seed<k>/validation.json
     python scripts/ladder.py figure [--out docs/figures/scaling.png]
 
@@ -220,11 +221,24 @@ def train(name: str, seed: int) -> int:
     return code
 
 
+def light_copy(src: Path, dst: Path) -> Path:
+    """`dst`: the light form (actor only) of checkpoint `src`, full or policy-only."""
+    from lasmp.algo.checkpoint import is_policy_only, policy_checkpoint, read_checkpoint
+    from lasmp.light_checkpoint import write_light
+
+    if is_policy_only(read_checkpoint(src)):
+        return write_light(src, dst, force=True)
+    slim = dst.with_name(dst.stem + ".policy.tmp.pt")
+    try:
+        policy_checkpoint(src, slim, force=True)
+        return write_light(slim, dst, force=True)
+    finally:
+        slim.unlink(missing_ok=True)
+
+
 def collect(name: str, seed: int, force: bool = False) -> Path:
     """results/ladder/<rung>/seed<k>/: the run's validation.json, config.yaml, commands and its final
     and best policies in the light form (under 1 MB each)."""
-    from lasmp.light_checkpoint import write_light
-
     rung = _rung(name)
     run_dir = ROOT / RUNS / name / f"seed{seed}"
     last = _last_saved(run_dir)
@@ -240,8 +254,28 @@ def collect(name: str, seed: int, force: bool = False) -> Path:
     for src in ("validation.json", "config.yaml"):
         shutil.copyfile(run_dir / src, dest / src)
     shutil.copyfile(run_dir.parent / f"seed{seed}.commands", dest / "commands")
-    write_light(run_dir / f"model_{last}.pt", dest / "policy_final.pt", force=True)
-    write_light(run_dir / "policy_best.pt", dest / "policy_best.pt", force=True)
+    light_copy(run_dir / f"model_{last}.pt", dest / "policy_final.pt")
+    light_copy(run_dir / "policy_best.pt", dest / "policy_best.pt")
+    return dest
+
+
+def snapshot(name: str, seed: int) -> Path:
+    """results/ladder/<rung>/seed<k>/in_progress/: a running run's newest checkpoint in the light form,
+    its curve so far and its commands, to commit at the end of a sitting (a lost machine then costs the
+    hours since, not the run: it goes on from these weights with a fresh optimizer, a warm start)."""
+    _rung(name)
+    run_dir = ROOT / RUNS / name / f"seed{seed}"
+    last = _last_saved(run_dir)
+    if last is None:
+        raise SystemExit(f"error: {run_dir} holds no checkpoint yet")
+    dest = RESULTS / name / f"seed{seed}" / "in_progress"
+    dest.mkdir(parents=True, exist_ok=True)
+    for old in dest.glob("policy_*.pt"):
+        old.unlink()
+    light_copy(run_dir / f"model_{last}.pt", dest / f"policy_{last}.pt")
+    shutil.copyfile(run_dir.parent / f"seed{seed}.commands", dest / "commands")
+    if (run_dir / "validation.json").exists():
+        shutil.copyfile(run_dir / "validation.json", dest / "validation.json")
     return dest
 
 
@@ -262,7 +296,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
     sub.add_parser("plan", help="every run and how far it is")
-    for verb in ("train", "collect"):
+    for verb in ("train", "collect", "snapshot"):
         s = sub.add_parser(verb)
         s.add_argument("rung", choices=sorted(RUNGS))
         s.add_argument("seed", type=_seed)
@@ -281,6 +315,8 @@ def main(argv=None) -> int:
         return train(args.rung, args.seed)
     elif args.cmd == "collect":
         print(collect(args.rung, args.seed, args.force))
+    elif args.cmd == "snapshot":
+        print(snapshot(args.rung, args.seed))
     else:
         found = curves(args.results)
         if not found:

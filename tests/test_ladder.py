@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
 from testkit import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -110,3 +111,49 @@ def test_help_says_what_the_ladder_is():
         [sys.executable, "scripts/ladder.py", "--help"], cwd=ROOT, capture_output=True, text=True
     )
     assert out.returncode == 0 and "validation benchmark" in out.stdout and "table" in out.stdout
+
+
+def test_a_running_run_leaves_its_newest_policy_light_with_its_commands_and_an_unfinished_one_is_not_collected(
+    tmp_path,
+):
+    from testkit import tiny
+
+    from lasmp.train import train
+
+    ladder = load_script("scripts/ladder.py")
+    ladder.ROOT, ladder.RESULTS = tmp_path, tmp_path / "results" / "ladder"
+    run = tmp_path / "runs" / "ladder" / "base" / "seed10"
+    train(
+        tiny(
+            run,
+            runner={
+                "max_iterations": 2,
+                "save_interval": 1,
+                "validation_interval": 1,
+                "validation_episodes": 2,
+            },
+        )
+    )
+    (run.parent / "seed10.commands").write_text("# a time\ntrain.py seed=10\n")
+    dest = ladder.snapshot("base", 10)
+    policy = torch.load(dest / "policy_1.pt", weights_only=True)
+    assert policy["kind"] == "actor" and policy["iter"] == 1 and (dest / "policy_1.pt").stat().st_size < 1e6
+    assert (dest / "commands").read_text().endswith("train.py seed=10\n")
+    with pytest.raises(SystemExit, match="has not finished its 1800 iterations"):
+        ladder.collect("base", 10)
+    # a rung of two iterations at 4 envs: the run has finished it
+    ladder.RUNGS["base"], ladder.SAMPLES = ladder.Rung("4 envs", "baseline", num_envs=4), 4 * 12 * 2
+    out = ladder.collect("base", 10)
+    assert sorted(p.name for p in out.iterdir()) == [
+        "commands",
+        "config.yaml",
+        "in_progress",
+        "policy_best.pt",
+        "policy_final.pt",
+        "validation.json",
+    ]
+    final, best = (torch.load(out / f, weights_only=True) for f in ("policy_final.pt", "policy_best.pt"))
+    assert (final["kind"], final["iter"], best["kind"]) == ("actor", 1, "actor")
+    assert [r["iteration"] for r in ladder.read_curve(out / "validation.json")["history"]] == [0, 1]
+    with pytest.raises(SystemExit, match="holds a collected run; give --force"):
+        ladder.collect("base", 10)

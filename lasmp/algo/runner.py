@@ -308,7 +308,8 @@ class LasmpRunner(OnPolicyRunnerCompat):
 
     def _after_iteration(self, it: int) -> None:
         self._faults_before = getattr(self.env, "fault_count", 0)  # the next rollout's faults count from here
-        self._validate_if_due(it)
+        if self._signal is None:  # a stop asked for saves at once, without a validation first
+            self._validate_if_due(it)
         stop = self._share_iteration_end(it) if self.is_distributed else self._signal
         if stop is None:
             return

@@ -92,7 +92,10 @@ class SymmetryCfg:
 @dataclass
 class AlgoCfg:
     learning_rate: float = 1e-3
-    num_learning_epochs: int = 5
+    # (ours) LAS-MP+'s: two passes over a rollout that the mirror augmentation doubles, at about the
+    # learning of five and half the learner's time (docs/performance.md#the-learner-with-the-mirror-
+    # augmentation); recipe=paper and the R-S task keep rsl_rl's 5
+    num_learning_epochs: int = 2
     num_mini_batches: int = 4
     clip_param: float = 0.2
     gamma: float = 0.99

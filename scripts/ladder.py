@@ -65,7 +65,7 @@ RUNGS = {
     "envs8192": Rung("8,192 envs", "(a) batch", num_envs=8_192),
     "steps24": Rung("24 steps per env", "(b) rollout", steps_per_env=24),
     "steps48": Rung("48 steps per env", "(b) rollout", steps_per_env=48),
-    "epochs2": Rung("2 learning epochs", "(c) update", overrides=("algo.num_learning_epochs=2",)),
+    "epochs5": Rung("5 learning epochs (rsl_rl's)", "(c) update", overrides=("algo.num_learning_epochs=5",)),
     "minibatches8": Rung("8 mini-batches", "(c) update", overrides=("algo.num_mini_batches=8",)),
     "kl0.02": Rung("KL target 0.02", "(c) update", overrides=("algo.desired_kl=0.02",)),
 }

@@ -26,7 +26,10 @@ def trained(tmp_path_factory):
     paper's recipe; the first resumed by 1 iteration."""
     tmp = tmp_path_factory.mktemp("naming")
     plus = run_script("train.py", *TINY, "runner.max_iterations=2", cwd=tmp).stdout
-    paper = run_script("train.py", *TINY, "runner.max_iterations=2", "recipe=paper", cwd=tmp).stdout
+    # the paper's recipe with its own 5 learning epochs (the tiny ones' 1 would make it a custom mix)
+    paper = run_script(
+        "train.py", *TINY, "runner.max_iterations=2", "recipe=paper", "algo.num_learning_epochs=5", cwd=tmp
+    ).stdout
     (plus_dir,) = (tmp / "logs" / "moving_platform" / "lasmp_plus").iterdir()
     resumed = run_script("train.py", *TINY, "runner.max_iterations=1", f"resume={plus_dir}", cwd=tmp).stdout
     return tmp, plus, paper, resumed

@@ -347,7 +347,7 @@ def play(args, outputs: Outputs) -> int:
             writer.abort()  # a failed or interrupted run: no partial video
         for c in reversed(closers):
             c.close()
-    if stats["steps"]:  # an export alone (--steps 0) played nothing: no line about it
+    if stats["steps"] or not args.export:  # an export alone (--steps 0) played nothing: no line about it
         print(summary_line(stats, env.num_envs), flush=True)
     if video:
         print(f"wrote {video[1].frames} frames to {args.video}", flush=True)

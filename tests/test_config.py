@@ -4,6 +4,7 @@ schemas import without the envs."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import subprocess
@@ -203,9 +204,13 @@ def test_las_mp_plus_is_the_default_recipe_and_the_papers_is_one_override_away()
         False,
         True,
     )
-    # the paper's recipe is the schema's defaults: every LAS-MP+ option off
+    # the paper's recipe is the schema's defaults, every LAS-MP+ option off, with rsl_rl's 5 learning
+    # epochs where LAS-MP+ takes the schema's 2 (R-S, which takes no recipe, 5 as well)
     assert _recipe_keys(paper) == ("touchdown", 0.0, False, False)
-    assert paper.env.rewards == RewardsCfg() and paper.algo == AlgoCfg()
+    assert paper.env.rewards == RewardsCfg()
+    assert paper.algo == dataclasses.replace(AlgoCfg(), num_learning_epochs=5)
+    assert (plus.algo.num_learning_epochs, AlgoCfg().num_learning_epochs) == (2, 2)
+    assert to_train_cfg(compose_cfg(["task=rough_static"])).algo.num_learning_epochs == 5
     # the ablations take the recipe they are given
     ablation = to_train_cfg(compose_cfg(["policy=no_alignment_command", "recipe=paper"]))
     assert _recipe_keys(ablation) == _recipe_keys(paper) and not ablation.policy.use_alignment

@@ -38,7 +38,8 @@ CASES = {
     "a reward setting": (["env.rewards.sigma_center_m=1.0"], {"env.rewards.sigma_center_m"}),
     "an appended key": (["+seed=3"], {"seed"}),
     # a group option: the keys its own config sets, under its package
-    "another task": (["task=rough_static"], {"task"}),  # its env and policy stay the run's
+    # its env and policy stay the run's; the task's file also sets R-S's learning epochs
+    "another task": (["task=rough_static"], {"task", "algo.num_learning_epochs"}),
     "a preset": (["preset=paper"], {"device", "env.num_envs", "runner.max_iterations"}),
     "an ablation": (["policy=no_alignment_command"], {"policy.name", "policy.use_alignment"}),
 }

@@ -16,9 +16,11 @@ mean, their spread (max - min) and each seed's difference from the baseline rung
 
 import argparse
 import json
+import os
 import shutil
 import subprocess
 import sys
+import time
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -201,9 +203,22 @@ def _last_saved(run_dir: Path) -> int | None:
     return max(full) if full else None
 
 
+def machine() -> str:
+    """The CPU this runs on, and whether it multiplies bfloat16 natively (the learner depends on it)."""
+    try:
+        info = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return "an unknown CPU"
+    model = next(
+        (line.split(":", 1)[1].strip() for line in info.splitlines() if line.startswith("model name")), "?"
+    )
+    return f"{model}, {os.cpu_count()} cores, {'with' if 'avx512_bf16' in info else 'without'} AVX-512 BF16"
+
+
 def train(name: str, seed: int) -> int:
-    """Train (or resume) one run; its command goes into runs/ladder/<rung>/seed<k>.commands once the
-    training has started and saved, never for a run that failed to start."""
+    """Train (or resume) one run. Its command goes into runs/ladder/<rung>/seed<k>.commands, with the
+    time and the machine, once the training has saved a checkpoint (so that a snapshot of a run still
+    training carries it), never for a run that failed before its first save."""
     rung = _rung(name)
     run_dir = RUNS / name / f"seed{seed}"
     last = _last_saved(ROOT / run_dir)
@@ -213,11 +228,24 @@ def train(name: str, seed: int) -> int:
         return 0
     cmd = rung.command(seed, run_dir, rung.iterations - done, resume=last is not None)
     print(" ".join(cmd), flush=True)
-    code = subprocess.run(cmd, cwd=ROOT).returncode
-    if _last_saved(ROOT / run_dir) is not None and _last_saved(ROOT / run_dir) != last:
-        stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
-        with (ROOT / RUNS / name / f"seed{seed}.commands").open("a") as f:
-            f.write(f"# {stamp} (exit {code})\n{' '.join(cmd[1:])}\n")
+    stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
+    recorded = False
+
+    def record() -> None:
+        nonlocal recorded
+        if not recorded and _last_saved(ROOT / run_dir) not in (None, last):
+            with (ROOT / RUNS / name / f"seed{seed}.commands").open("a") as f:
+                f.write(f"# {stamp}, {machine()}\n{' '.join(cmd[1:])}\n")
+            recorded = True
+
+    proc = subprocess.Popen(cmd, cwd=ROOT)
+    try:
+        while proc.poll() is None:
+            record()
+            time.sleep(5)
+    finally:
+        code = proc.wait()  # a Ctrl-C reaches the training too: it saves, then ends
+        record()
     return code
 
 

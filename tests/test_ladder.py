@@ -157,3 +157,27 @@ def test_a_running_run_leaves_its_newest_policy_light_with_its_commands_and_an_u
     assert [r["iteration"] for r in ladder.read_curve(out / "validation.json")["history"]] == [0, 1]
     with pytest.raises(SystemExit, match="holds a collected run; give --force"):
         ladder.collect("base", 10)
+
+
+def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_saved(tmp_path):
+    from testkit import TINY_CLI
+
+    ladder = load_script("scripts/ladder.py")
+    ladder.RUNS, ladder.RESULTS = tmp_path / "runs", tmp_path / "results"
+    tiny = (*TINY_CLI, "runner.validation_episodes=2")
+    ladder.RUNGS["base"], ladder.SAMPLES = (
+        ladder.Rung("4 envs", "baseline", num_envs=4, overrides=tiny),
+        4 * 12 * 2,
+    )
+    assert ladder.train("base", 10) == 0
+    lines = (tmp_path / "runs" / "base" / "seed10.commands").read_text().splitlines()
+    assert len(lines) == 2 and lines[0].startswith("# ") and "cores" in lines[0]
+    assert "seed=10" in lines[1] and "runner.max_iterations=2" in lines[1]
+    assert ladder.train("base", 10) == 0  # done: nothing runs, nothing is recorded again
+    assert len((tmp_path / "runs" / "base" / "seed10.commands").read_text().splitlines()) == 2
+    curve = ladder.read_curve(tmp_path / "runs" / "base" / "seed10" / "validation.json")
+    assert [r["iteration"] for r in curve["history"]] == [0, 1]
+    # a rung whose training fails before its first save records nothing
+    ladder.RUNGS["steps24"] = ladder.Rung("bad", "(b) rollout", num_envs=4, overrides=("env.bogus_key=1",))
+    assert ladder.train("steps24", 10) != 0
+    assert not (tmp_path / "runs" / "steps24" / "seed10.commands").exists()

@@ -48,6 +48,9 @@ def test_the_batch_and_rollout_rungs_train_on_equal_samples_with_the_same_valida
     assert (ladder.RUNGS["base"].iterations, ladder.RUNGS["envs8192"].iterations) == (1_800, 225)
     cmd = ladder.RUNGS["steps24"].command(10, Path("runs/x"), 900, resume=False)
     assert "runner.num_steps_per_env=24" in cmd and "runner.max_iterations=900" in cmd and "seed=10" in cmd
+    big = ladder.RUNGS["envs8192"].command(10, Path("runs/x"), 225, resume=False)
+    assert "runner.validation_interval=12" in big and "runner.save_interval=12" in big
+    assert "runner.save_interval=50" in ladder.RUNGS["base"].command(10, Path("r"), 5, False)
     assert (
         cmd[-1] != "resume=runs/x" and ladder.RUNGS["base"].command(10, Path("r"), 5, True)[-1] == "resume=r"
     )

@@ -3,8 +3,6 @@ trajectory file it cannot read; and the real train.py printing a typo (Hydra's e
 
 from __future__ import annotations
 
-import os
-
 import pytest
 import torch
 from badkit import files, refused, tiny, train, train_py
@@ -105,34 +103,47 @@ def test_an_env_count_that_cannot_fit_in_memory_is_refused_up_front_with_its_est
     assert not run.exists()
 
 
+MEASURE_ENV_GROWTH = """
+import dataclasses, json, os, sys
+from hydra import compose, initialize_config_dir
+from lasmp.train import make_env
+from lasmp.train_cfg import to_train_cfg
+from lasmp.train_resources import env_bytes
+
+def resident():
+    return int(open("/proc/self/statm").read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+root, overrides = sys.argv[1], json.loads(sys.argv[2])
+with initialize_config_dir(config_dir=root + "/cfg", version_base="1.3"):
+    cfg = to_train_cfg(compose("config", overrides=overrides))
+make_env(dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, num_envs=1))).close()  # imports, warm-up
+before = resident()
+env = make_env(dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, num_envs=257)))
+grown = (resident() - before) / 256
+print(json.dumps({"grown": grown, **env_bytes(cfg)}))
+"""
+
+
 def test_the_memory_estimate_is_a_lower_bound_of_what_the_envs_take():
     """The estimate only refuses what cannot fit: it must not exceed the memory envs really take
-    (measured: the resident growth of building 256 envs, per env)."""
-    import dataclasses
+    (measured: the resident growth of building 256 envs, per env). Measured in a fresh interpreter:
+    inside the test session, pages freed by earlier tests are reused and the growth reads low."""
+    import json
+    import subprocess
+    import sys
 
-    from lasmp.train import make_env
-    from lasmp.train_cfg import to_train_cfg
-    from lasmp.train_resources import env_bytes
-
-    def resident() -> int:
-        return int(open("/proc/self/statm").read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-
-    cfg = to_train_cfg(compose_tiny())
-    parts = env_bytes(cfg)
-    assert parts["physics"] > 10_000 and parts["observation"] > 0 and parts["rollout storage"] > 0
-    before = resident()
-    env = make_env(dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, num_envs=257)))
-    grown = (resident() - before) / 256
-    del env
-    assert parts["physics"] + parts["observation"] < grown  # what one env holds: at most what it takes
-
-
-def compose_tiny():
     from badkit import ROOT
-    from hydra import compose, initialize_config_dir
 
-    with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
-        return compose("config", overrides=tiny())
+    run = subprocess.run(
+        [sys.executable, "-c", MEASURE_ENV_GROWTH, str(ROOT), json.dumps(tiny())],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    parts = json.loads(run.stdout.strip().splitlines()[-1])
+    assert parts["physics"] > 10_000 and parts["observation"] > 0 and parts["rollout storage"] > 0
+    assert parts["physics"] + parts["observation"] < parts["grown"]  # one env holds at most what it takes
 
 
 # -- a trajectory file given to training ---------------------------------------------------------

@@ -26,6 +26,7 @@ def checkpoint_cfg(
         conf.seed = int(seed)
         conf.device = "cpu"
         conf.resume = None
+        conf.warm_start = None
         conf.runner.log_dir = None
         # it logs nothing: a W&B or Neptune run plays without their package
         conf.runner.logger = "tensorboard"

@@ -44,7 +44,7 @@ if TYPE_CHECKING:
 CFG_DIR = Path(__file__).resolve().parents[1] / "cfg"
 
 # keys a resume takes from the command, never from the checkpoint's config
-FROM_COMMAND = ("resume", "resume_drop_env_state", "runner.log_dir")
+FROM_COMMAND = ("resume", "resume_drop_env_state", "warm_start", "runner.log_dir")
 # keys a resume may change freely: how long and where it runs, on what hardware, how it computes
 RESUME_FREE = FROM_COMMAND + (
     "runner.",
@@ -400,7 +400,7 @@ def resume_command(checkpoint: str, log_dir: str, iterations_left: int | None = 
     overrides = hydra_overrides() or []
     # a `+key=` that composed names a key of the schema (validation refuses others), and Hydra now
     # refuses `+` on an existing key: repeat it without the `+`
-    drop = ("resume=", "runner.log_dir=") + (
+    drop = ("resume=", "warm_start=", "runner.log_dir=") + (
         ("runner.max_iterations=",) if iterations_left is not None else ()
     )
     keep = [o.removeprefix("+") for o in overrides if not o.lstrip("+~").startswith(drop)]

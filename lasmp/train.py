@@ -33,6 +33,7 @@ from lasmp.resume import Resume, check_run_dir, explicit_keys, hydra_overrides, 
 from lasmp.rundir import RunDirError, claim, run_checkpoints
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
 from lasmp.train_resources import check_disk_space, check_memory
+from lasmp.warm_start import WarmStart
 
 
 def seed_everything(seed: int) -> None:
@@ -115,8 +116,10 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
     """Train as `cfg` says: build, resume (`lasmp.resume`), learn. `explicit`: on resume, the keys
     the command line set (None: every key of `cfg`)."""
     cfg = to_train_cfg(cfg)
-    resume = Resume.check(cfg, explicit) if cfg.resume else None  # fails before anything is built
-    cfg = resume.cfg if resume else cfg
+    # a resume or a warm start, checked whole: it fails before anything is built
+    start = WarmStart.check(cfg, explicit) if cfg.warm_start else None
+    resume = Resume.check(cfg, explicit) if cfg.resume and not start else None
+    cfg = resume.cfg if resume else start.cfg if start else cfg
     ranks = dp.ranks_from_env()  # torchrun: rank 0 alone holds the run directory, logs and saves
     # an env.num_envs that cannot fit, refused before any allocation
     check_memory(cfg, dp.local_world_size() if ranks.distributed else 1)
@@ -132,8 +135,9 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
     say = print if ranks.is_main else (lambda *a, **k: None)
     with owner:
         runner = make_runner(cfg, str(log_dir) if ranks.is_main else None, ranks.rank)
-        if resume:
-            resume.restore(runner, say)
+        for restoring in (resume, start):
+            if restoring:
+                restoring.restore(runner, say)
         first = runner.current_learning_iteration
         last = first + cfg.runner.max_iterations - 1  # the iteration this command ends at
         if ranks.is_main:  # the first checkpoint must fit on the disk before anything is written
@@ -184,7 +188,7 @@ def config_header(first: int, last: int) -> str:
     if first == 0:
         return ""
     return (
-        f"# written by a resume: this command trained iterations {first}\u2013{last}, so the run holds "
+        f"# written by a resume or a warm start: this command trained iterations {first}\u2013{last}, so the run holds "
         f"{last + 1} in all;\n# runner.max_iterations below counts the iterations it added, not the run's length\n"
     )
 
@@ -285,7 +289,9 @@ def main(cfg, overrides: list[str] | None = None) -> int:
     try:
         if overrides is None:
             overrides = hydra_overrides()
-        resuming = getattr(cfg, "resume", None) and overrides is not None
+        resuming = (
+            getattr(cfg, "resume", None) or getattr(cfg, "warm_start", None)
+        ) and overrides is not None
         explicit = explicit_keys(overrides) if resuming else None
         with quiet_writer_threads():
             train(cfg, explicit)

@@ -235,6 +235,9 @@ class TrainCfg:
     # on resume, start every env's episode anew instead of restoring the envs' running state: needed
     # when env.num_envs differs from the checkpoint's (the resume is then not exact)
     resume_drop_env_state: bool = False
+    # (ours) a new run from a checkpoint's weights (any form: full, policy, light), with fresh optimizers:
+    # what goes on from a committed policy when the run's full checkpoint is lost (lasmp/warm_start.py)
+    warm_start: str | None = None
     # the task's env config, env_schema(task). Hydra composes it from the `env` group (typed: unknown keys
     # fail naming them); a plain dict (a checkpoint's saved config) is built with the task's schema by
     # to_train_cfg. Any, not BaseEnvCfg: a task's keys must merge into it before its type is known

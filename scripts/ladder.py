@@ -3,7 +3,8 @@ scored during training on the validation benchmark (`runner.validation_*`), on f
 run before the ladder used them), the same seeds on every rung so that rungs compare seed by seed.
 
     python scripts/ladder.py plan                 # every run: its command and how far it is
-    python scripts/ladder.py train RUNG SEED      # train it (a stopped run resumes from its last save)
+    python scripts/ladder.py train RUNG SEED      # train it (a stopped run resumes from its last save;
+                                                  # one whose machine was lost, from its snapshot: a warm start)
     python scripts/ladder.py collect RUNG SEED    # its curve, config, commands and light policies -> results/ladder/
     python scripts/ladder.py snapshot RUNG SEED   # a run still training: its newest policy (light), curve, commands
     python scripts/ladder.py table [--json]       # the table, from results/ladder/<rung>/seed<k>/validation.json
@@ -53,7 +54,9 @@ class Rung:
     def validation_interval(self) -> int:
         return max(1, self.iterations // POINTS)
 
-    def command(self, seed: int, run_dir: Path, iterations: int, resume: bool) -> list[str]:
+    def command(
+        self, seed: int, run_dir: Path, iterations: int, resume: bool, warm_start: Path | None = None
+    ) -> list[str]:
         cmd = [sys.executable, "train.py", f"seed={seed}", f"env.num_envs={self.num_envs}"]
         cmd += [f"runner.num_steps_per_env={self.steps_per_env}", *self.overrides]
         # a save at least every 50 iterations and every validation: a stop (or a lost machine) costs at
@@ -61,7 +64,11 @@ class Rung:
         save = min(50, self.validation_interval)
         cmd += [f"runner.validation_interval={self.validation_interval}", f"runner.save_interval={save}"]
         cmd += [f"runner.log_dir={run_dir}", f"runner.max_iterations={iterations}"]
-        return cmd + ([f"resume={run_dir}"] if resume else [])
+        return (
+            cmd
+            + ([f"resume={run_dir}"] if resume else [])
+            + ([f"warm_start={warm_start}"] if warm_start else [])
+        )
 
 
 RUNGS = {
@@ -218,18 +225,36 @@ def machine() -> str:
     return f"{model}, {os.cpu_count()} cores, {'with' if 'avx512_bf16' in info else 'without'} AVX-512 BF16"
 
 
+def snapshot_policy(name: str, seed: int) -> tuple[Path, int] | None:
+    """The committed snapshot's policy of a run (`snapshot`) and its iteration; None without one."""
+    found = sorted(
+        (int(p.stem.split("_")[1]), p)
+        for p in (RESULTS / name / f"seed{seed}" / "in_progress").glob("policy_*.pt")
+        if p.stem.split("_")[1].isdigit()
+    )
+    return (found[-1][1], found[-1][0]) if found else None
+
+
 def train(name: str, seed: int) -> int:
     """Train (or resume) one run. Its command goes into runs/ladder/<rung>/seed<k>.commands, with the
     time and the machine, once the training has saved a checkpoint (so that a snapshot of a run still
-    training carries it), never for a run that failed before its first save."""
+    training carries it), never for a run that failed before its first save. A run with no checkpoint
+    here but a committed snapshot (its machine was lost) goes on from the snapshot's policy, a warm
+    start (lasmp/warm_start.py), after the snapshot's commands."""
     rung = _rung(name)
     run_dir = RUNS / name / f"seed{seed}"
     last = _last_saved(ROOT / run_dir)
-    done = 0 if last is None else last + 1
+    snap = snapshot_policy(name, seed) if last is None else None
+    done = last + 1 if last is not None else snap[1] + 1 if snap else 0
     if done >= rung.iterations:
         print(f"{run_dir}: done ({rung.iterations} iterations)")
         return 0
-    cmd = rung.command(seed, run_dir, rung.iterations - done, resume=last is not None)
+    warm = Path(os.path.relpath(snap[0], ROOT)) if snap else None
+    cmd = rung.command(seed, run_dir, rung.iterations - done, resume=last is not None, warm_start=warm)
+    commands = ROOT / RUNS / name / f"seed{seed}.commands"
+    if snap and not commands.exists():  # the run's history so far, then the warm start's command
+        commands.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(snap[0].parent / "commands", commands)
     print(" ".join(cmd), flush=True)
     stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     recorded = False
@@ -237,7 +262,7 @@ def train(name: str, seed: int) -> int:
     def record() -> None:
         nonlocal recorded
         if not recorded and _last_saved(ROOT / run_dir) not in (None, last):
-            with (ROOT / RUNS / name / f"seed{seed}.commands").open("a") as f:
+            with commands.open("a") as f:
                 f.write(f"# {stamp}, {machine()}\n{' '.join(cmd[1:])}\n")
             recorded = True
 
@@ -287,13 +312,15 @@ def collect(name: str, seed: int, force: bool = False) -> Path:
     shutil.copyfile(run_dir.parent / f"seed{seed}.commands", dest / "commands")
     light_copy(run_dir / f"model_{last}.pt", dest / "policy_final.pt")
     light_copy(run_dir / "policy_best.pt", dest / "policy_best.pt")
+    shutil.rmtree(dest / "in_progress", ignore_errors=True)  # the finished run's files replace the snapshot
     return dest
 
 
 def snapshot(name: str, seed: int) -> Path:
-    """results/ladder/<rung>/seed<k>/in_progress/: a running run's newest checkpoint in the light form,
-    its curve so far and its commands, to commit at the end of a sitting (a lost machine then costs the
-    hours since, not the run: it goes on from these weights with a fresh optimizer, a warm start)."""
+    """results/ladder/<rung>/seed<k>/in_progress/: a running run's newest policy checkpoint (the critic
+    kept, 1.8 MB), its curve so far and its commands, to commit at the end of a sitting (a lost machine
+    then costs the hours since, not the run: `train` goes on from these weights with fresh optimizers,
+    a warm start)."""
     _rung(name)
     run_dir = ROOT / RUNS / name / f"seed{seed}"
     last = _last_saved(run_dir)
@@ -303,7 +330,9 @@ def snapshot(name: str, seed: int) -> Path:
     dest.mkdir(parents=True, exist_ok=True)
     for old in dest.glob("policy_*.pt"):
         old.unlink()
-    light_copy(run_dir / f"model_{last}.pt", dest / f"policy_{last}.pt")
+    from lasmp.algo.checkpoint import policy_checkpoint
+
+    policy_checkpoint(run_dir / f"model_{last}.pt", dest / f"policy_{last}.pt", force=True)
     shutil.copyfile(run_dir.parent / f"seed{seed}.commands", dest / "commands")
     if (run_dir / "validation.json").exists():
         shutil.copyfile(run_dir / "validation.json", dest / "validation.json")
@@ -315,9 +344,12 @@ def plan() -> None:
         for seed in SEEDS:
             last = _last_saved(ROOT / RUNS / name / f"seed{seed}")
             collected = (RESULTS / name / f"seed{seed}" / "validation.json").exists()
+            snap = snapshot_policy(name, seed) if last is None else None
             state = (
                 "collected"
                 if collected
+                else f"snapshot {snap[1] + 1}/{rung.iterations} iterations"
+                if snap
                 else f"{0 if last is None else last + 1}/{rung.iterations} iterations"
             )
             print(f"{name:>13} seed {seed}: {state:>22} | python scripts/ladder.py train {name} {seed}")

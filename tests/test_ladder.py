@@ -4,6 +4,7 @@ and a command line that refuses what it cannot use."""
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -140,17 +141,18 @@ def test_a_running_run_leaves_its_newest_policy_light_with_its_commands_and_an_u
     (run.parent / "seed10.commands").write_text("# a time\ntrain.py seed=10\n")
     dest = ladder.snapshot("base", 10)
     policy = torch.load(dest / "policy_1.pt", weights_only=True)
-    assert policy["kind"] == "actor" and policy["iter"] == 1 and (dest / "policy_1.pt").stat().st_size < 1e6
+    # the policy checkpoint, critic kept: a warm start from it starts only the optimizers anew
+    assert policy["kind"] == "policy" and policy["iter"] == 1 and policy["critic_state_dict"]
+    assert "optimizer_state_dict" not in policy and (dest / "policy_1.pt").stat().st_size < 2.5e6
     assert (dest / "commands").read_text().endswith("train.py seed=10\n")
     with pytest.raises(SystemExit, match="has not finished its 1800 iterations"):
         ladder.collect("base", 10)
     # a rung of two iterations at 4 envs: the run has finished it
     ladder.RUNGS["base"], ladder.SAMPLES = ladder.Rung("4 envs", "baseline", num_envs=4), 4 * 12 * 2
     out = ladder.collect("base", 10)
-    assert sorted(p.name for p in out.iterdir()) == [
+    assert sorted(p.name for p in out.iterdir()) == [  # the snapshot gone: the finished run replaces it
         "commands",
         "config.yaml",
-        "in_progress",
         "policy_best.pt",
         "policy_final.pt",
         "validation.json",
@@ -180,6 +182,18 @@ def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_
     assert len((tmp_path / "runs" / "base" / "seed10.commands").read_text().splitlines()) == 2
     curve = ladder.read_curve(tmp_path / "runs" / "base" / "seed10" / "validation.json")
     assert [r["iteration"] for r in curve["history"]] == [0, 1]
+    # the machine is lost after a snapshot: the run goes on from the snapshot's policy, a warm start
+    ladder.snapshot("base", 10)
+    shutil.rmtree(tmp_path / "runs")
+    ladder.SAMPLES = 4 * 12 * 4
+    assert ladder.train("base", 10) == 0
+    lines = (tmp_path / "runs" / "base" / "seed10.commands").read_text().splitlines()
+    assert len(lines) == 4 and "runner.max_iterations=2" in lines[3]
+    assert "warm_start=" in lines[3] and lines[3].endswith("in_progress/policy_1.pt")
+    run = tmp_path / "runs" / "base" / "seed10"
+    assert sorted(p.name for p in run.glob("model_*.pt")) == ["model_2.pt", "model_3.pt"]
+    # the validation curve goes on from the snapshot's
+    assert [r["iteration"] for r in ladder.read_curve(run / "validation.json")["history"]] == [0, 1, 2, 3]
     # a rung whose training fails before its first save records nothing
     ladder.RUNGS["steps24"] = ladder.Rung("bad", "(b) rollout", num_envs=4, overrides=("env.bogus_key=1",))
     assert ladder.train("steps24", 10) != 0

@@ -85,7 +85,8 @@ def refuse_policy_only(data: dict) -> None:
     where = (
         f"give {full[max(full)]}, the newest full checkpoint of its run"
         if full
-        else f"give a full checkpoint ({FULL}_<N>.pt): {path.parent} holds none"
+        else f"give a full checkpoint ({FULL}_<N>.pt): {path.parent} holds none, or start a new run from "
+        f"its weights with warm_start={path} (fresh optimizers)"
     )
     raise CheckpointError(
         f"{path} is a policy checkpoint (it holds no training state: no optimizers, no envs' running "

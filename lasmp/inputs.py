@@ -13,12 +13,15 @@ was tested by truthiness). Here each rule is written once and every command uses
   and is writable. It creates nothing, so a refused command leaves nothing behind.
 - `missing_dirs`, `file_sha256`: what the writers record about a path: the directories writing it
   creates (removed again when the command fails), and a file's hash (results name their inputs).
+- `read_json`: a JSON file another command wrote (metrics.json, summary.json), or one line naming
+  the file when it is missing, cut short or not JSON (json's own error names no file).
 """
 
 from __future__ import annotations
 
 import argparse
 import hashlib
+import json
 import math
 import os
 from pathlib import Path
@@ -144,3 +147,34 @@ def size_in_words(n: int) -> str:
         if n >= scale:
             return f"{n / scale:.3g} {unit}" if n < 1000 * scale else f"{n / scale:.0f} {unit}"
     return f"{n} B"
+
+
+def read_json(path: str | os.PathLike) -> dict:
+    """The JSON object in the file at `path`; InputError "PATH: why" for a file that is missing,
+    unreadable, empty, truncated (a copy or a write cut short) or anything but a JSON object."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except OSError as err:  # a directory, no permission
+        raise InputError(f"{path}: cannot be read ({err.strerror or err})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not JSON (not UTF-8 text)") from None
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as err:
+        if not text.strip():
+            raise InputError(f"{path}: empty, not JSON") from None
+        # the parser ran into the end of the text (inside a string, it reports where the string began)
+        if err.pos >= len(text.rstrip()) or err.msg.startswith("Unterminated string"):
+            raise InputError(f"{path}: truncated: the file ends before its JSON does") from None
+        raise InputError(
+            f"{path}: not valid JSON: {err.msg} at line {err.lineno}, column {err.colno}"
+        ) from None
+    if not isinstance(value, dict):
+        kind = {list: "an array", str: "a string", bool: "a boolean", type(None): "null"}.get(
+            type(value), "a number"
+        )
+        raise InputError(f"{path}: holds {kind}, not the JSON object expected")
+    return value

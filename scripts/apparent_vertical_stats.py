@@ -27,6 +27,7 @@ import numpy as np
 from lasmp.eval import cli
 from lasmp.eval import platform_probe as pp
 from lasmp.eval.report import atomic_write_text
+from lasmp.inputs import InputError, check_out_file
 from lasmp.motions import level_push
 from lasmp.motions.motion import derivatives
 
@@ -122,9 +123,11 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, required=True, help="the JSON to write")
     p.add_argument("--force", action="store_true", help="overwrite --out")
     args = p.parse_args(argv)
-    if args.out.exists() and not args.force:
-        p.error(f"{args.out} exists: give another --out, or --force")
-    bench = cli.load_or_make_benchmark(args.benchmark)
+    try:  # the files named, before the minutes of replay
+        check_out_file(args.out, suffixes=(".json",), force=args.force, option="--out")
+        bench = cli.load_or_make_benchmark(args.benchmark)
+    except (*cli.INPUT_ERRORS, InputError) as err:
+        p.error(str(err))
     if not 1 <= args.episodes <= bench.num_trajectories:
         p.error(f"--episodes must be in [1, {bench.num_trajectories}], got {args.episodes}")
     from lasmp.config import build_env_cfg

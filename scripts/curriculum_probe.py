@@ -28,8 +28,10 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from lasmp.algo.checkpoint import CheckpointError, checkpoint_file  # noqa: E402
 from lasmp.atomic import atomic_open  # noqa: E402
 from lasmp.deploy import load_deploy_env  # noqa: E402
+from lasmp.inputs import InputError, check_out_file  # noqa: E402
 
 
 def first_episodes(env, act, steps: int) -> dict:
@@ -71,12 +73,18 @@ def main(argv=None) -> int:
 
     if any(s < 0 for s in args.std_scales):
         p.error("--std-scales must be >= 0")
+    try:  # the files named, before the minutes of play
+        checkpoint = checkpoint_file(args.checkpoint)
+        if args.json:
+            check_out_file(args.json, suffixes=(".json",), force=True, option="--json")
+    except (CheckpointError, InputError) as err:
+        p.error(str(err))
     # (name, std scale): scale None plays the mean action
     modes = [("mean", None), ("sampled", 1.0), *((f"sampled_std_x{s:g}", s) for s in args.std_scales)]
     results = {}
     for name, scale in [*modes, ("stand_still", None)]:
         with contextlib.redirect_stdout(io.StringIO()):  # rsl_rl's models print themselves
-            env, policy, cfg, data = load_deploy_env(args.checkpoint, num_envs=args.envs, seed=args.seed)
+            env, policy, cfg, data = load_deploy_env(checkpoint, num_envs=args.envs, seed=args.seed)
         torch.manual_seed(cfg.seed)  # the action noise: the same draws in every mode
         num_actions = int(data["num_actions"])
         dist = policy.distribution

@@ -21,6 +21,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from lasmp.inputs import InputError, int_arg, read_json
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -42,8 +44,11 @@ def point(ckpt: Path, it: int, out: Path, episodes: int, minutes: float) -> dict
         cmd = [sys.executable, "evaluate.py", "--checkpoint", str(ckpt), "--out", str(dest)]
         cmd += ["--num-trajectories", str(episodes), "--no-platform-probe"]
         print(" ".join(cmd), flush=True)
-        subprocess.run(cmd, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
-    m = json.loads((dest / "metrics.json").read_text())
+        try:
+            subprocess.run(cmd, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+        except subprocess.CalledProcessError as err:  # evaluate.py has said why on stderr
+            raise SystemExit(err.returncode) from None
+    m = read_json(dest / "metrics.json")
     if m["num_episodes"] != episodes:
         raise SystemExit(f"{dest} evaluated {m['num_episodes']} episodes, not {episodes}: give another --out")
     return {
@@ -70,20 +75,22 @@ def table(points: list[dict], episodes: int) -> str:
 
 
 def main(argv=None) -> None:
-    from lasmp.eval.curves import read_scalars
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("run_dir", type=Path)
+    p.add_argument(
+        "--at", type=int_arg(0), nargs="+", required=True, help="checkpoints, by the iteration they end"
+    )
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--episodes", type=int_arg(1), default=2000, help="Xi_eval's first episodes to play")
+    args = p.parse_args(argv)
+    if not args.run_dir.is_dir():
+        p.error(f"{args.run_dir} is not a run directory")
+    if args.out.exists() and not args.out.is_dir():
+        p.error(f"--out {args.out} is not a directory")
+    from lasmp.eval.curves import read_scalars  # torch: after the arguments, so that --help answers at once
     from lasmp.eval.report import atomic_write_text
     from lasmp.rundir import run_checkpoints
 
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("run_dir", type=Path)
-    p.add_argument("--at", type=int, nargs="+", required=True, help="checkpoints, by the iteration they end")
-    p.add_argument("--out", type=Path, required=True)
-    p.add_argument("--episodes", type=int, default=2000, help="Xi_eval's first episodes to play")
-    args = p.parse_args(argv)
-    if not args.run_dir.is_dir():
-        raise SystemExit(f"{args.run_dir} is not a run directory")
-    if any(it < 0 for it in args.at) or args.episodes < 1:
-        raise SystemExit("--at takes iterations >= 0 and --episodes a positive count")
     its = sorted(set(args.at))
     # every checkpoint exists and the logs cover it before the first evaluation starts
     saved = run_checkpoints(args.run_dir)
@@ -95,7 +102,10 @@ def main(argv=None) -> None:
         )
     scalars = read_scalars(args.run_dir)
     minutes = {it: training_minutes(scalars, it + 1, args.run_dir) for it in its}
-    points = [point(saved[it], it, args.out, args.episodes, minutes[it]) for it in its]
+    try:
+        points = [point(saved[it], it, args.out, args.episodes, minutes[it]) for it in its]
+    except InputError as err:  # a metrics.json cut short or not evaluate.py's: one line naming it
+        raise SystemExit(f"error: {err}") from None
     curve = {"run_dir": str(args.run_dir), "episodes": args.episodes, "points": points}
     atomic_write_text(args.out / "curve.json", json.dumps(curve, indent=1))
     print(table(points, args.episodes))

@@ -26,10 +26,13 @@ from types import SimpleNamespace
 import numpy as np
 import torch
 
+from lasmp.algo.checkpoint import checkpoint_file
 from lasmp.eval import cli
+from lasmp.eval.benchmark import Benchmark
 from lasmp.eval.real_motion import suite as rm
 from lasmp.eval.report import atomic_write_text
 from lasmp.eval.run import run_benchmark
+from lasmp.inputs import InputError, check_out_file
 from lasmp.modules.obs_groups import GYRO_Z_COL, alignment_from_estimates
 from lasmp.motions import level_push
 
@@ -38,11 +41,11 @@ V_BODY, V_PLF = slice(4, 6), slice(7, 9)  # the xy columns of v_body_b and v_plf
 GRAVITY_W = np.array([0.0, 0.0, -9.81])
 
 
-def record(args) -> tuple[dict, dict[str, np.ndarray], float, list[str]]:
-    """Play the motions; (per-episode results, per-step arrays (T, n, ...): the true and estimated x_exp,
-    u_aln_hat, the trunk's z axis and the platform's velocity in W; dt, the motions' names)."""
+def record(args, bench: Benchmark) -> tuple[dict, dict[str, np.ndarray], float, list[str]]:
+    """Play the motions to the benchmark's robots; (per-episode results, per-step arrays (T, n, ...):
+    the true and estimated x_exp, u_aln_hat, the trunk's z axis and the platform's velocity in W; dt,
+    the motions' names)."""
     motions = level_push.motions()
-    bench = cli.load_or_make_benchmark(args.benchmark)
     episodes = rm.make_episodes(motions, bench.robots, args.robots_per_scenario)
     extra = rm.env_overrides(max(m.duration_s for m in motions), rm.DEFAULT_DRIVE)
     build_args = SimpleNamespace(
@@ -167,9 +170,13 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     torch.set_num_threads(1)  # as evaluate.py: more threads contend with the physics thread pool
     target = args.out / "estimates.json"
-    if target.exists() and not args.force:
-        p.error(f"{target} exists: give another --out, or --force")
-    per_episode, arrays, dt, names = record(args)
+    try:  # the files named, before the minutes of play
+        check_out_file(target, suffixes=(".json",), force=args.force, option="--out")
+        args.checkpoint = checkpoint_file(args.checkpoint)
+        bench = cli.load_or_make_benchmark(args.benchmark)
+    except (*cli.INPUT_ERRORS, InputError) as err:
+        p.error(str(err))
+    per_episode, arrays, dt, names = record(args, bench)
     summary = {"checkpoint": str(args.checkpoint), "robots_per_scenario": args.robots_per_scenario}
     summary.update(summarize(per_episode, arrays, dt, names, args.robots_per_scenario))
     args.out.mkdir(parents=True, exist_ok=True)

@@ -13,11 +13,12 @@ shifted 0.2 m or more sideways, and in those of N >= 11 waypoints (from episodes
 
 from __future__ import annotations
 
-import json
+import argparse
 from pathlib import Path
 
 from lasmp.eval import episodes as ep
 from lasmp.eval import metrics
+from lasmp.inputs import InputError, read_json
 
 ROOT = Path(__file__).resolve().parents[1]
 SCREEN = ROOT / "results" / "screen"
@@ -44,7 +45,7 @@ def hard_cases(episodes: dict) -> tuple[float, float]:
 def row(cand: str, seed_dir: Path) -> str | None:
     m2000 = seed_dir / "metrics_2000.json"
     if m2000.exists():
-        r = json.loads(m2000.read_text())
+        r = read_json(m2000)
         summary, gait = r["metrics"], r.get("gait") or {}
         wide, many = hard_cases(ep.read_csv(seed_dir / "episodes_2000.csv.gz"))
     elif cand not in BASELINES:  # trained only part of the way (a policy checkpoint kept): no row yet
@@ -63,7 +64,7 @@ def row(cand: str, seed_dir: Path) -> str | None:
         summary[m]["mean"] for m in ("collision_rate", "height_violation_rate", "rotation_deviation_rad")
     )
     mirror_file = seed_dir / "mirror_1024.json"
-    mirror = json.loads(mirror_file.read_text()) if mirror_file.exists() else {}
+    mirror = read_json(mirror_file) if mirror_file.exists() else {}
     mr = mirror.get("mirror", {})
     gait = gait or mirror.get("gait", {})
     legs = mr.get("original_legs"), mr.get("mirrored_legs_as_original")
@@ -77,7 +78,18 @@ def row(cand: str, seed_dir: Path) -> str | None:
     )
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    """Print the table; a record that is missing or unreadable ends it with one line naming the file."""
+    argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    ).parse_args(argv)
+    try:
+        print_table()
+    except (ep.EpisodesFileError, InputError) as err:  # the one line that names the file (and how to fix it)
+        raise SystemExit(f"error: {err}") from None
+
+
+def print_table() -> None:
     print(
         "| candidate | seed | collision (2,000) | height violation (2,000) | world tilt (rad) | steps on four feet | episodes with a foot "
         "up > 2 s | median longest air phase (s) | mirror overlap (1,024) | failures per leg FR FL RR RL: "
@@ -97,7 +109,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except ep.EpisodesFileError as err:  # a record not regenerated yet: the one line that says how
-        raise SystemExit(f"error: {err}") from None
+    main()

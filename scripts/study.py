@@ -14,9 +14,12 @@
 
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
 appended to runs/study/<method>/seed<k>.commands before it runs, so a run can be continued in a
-later sitting. Evaluations go to results/study/<method>[@<N>]/seed<k>/ (committed), with the run's
-config, its policy checkpoint (`policy_<N-1>.pt`) and learning curve (`curves_<N>.json`). Every run has
-the same budget: 450 iterations x 1,024 envs (the cpu preset), in the default configuration.
+later sitting, and to its committed copy results/study/<method>/seed<k>.commands once it has
+succeeded. A command that fails, or is stopped by Ctrl-C (train.py saves a checkpoint first), ends
+the study with its own exit status and message. Evaluations go to results/study/<method>[@<N>]/seed<k>/
+(committed), with the run's config, its policy checkpoint (`policy_<N-1>.pt`) and learning curve
+(`curves_<N>.json`). Every run has the same budget: 450 iterations x 1,024 envs (the cpu preset), in
+the default configuration.
 
 LAS-MP's seeds 0, 1 and 2 come first, then seed 0's continuation to 1,000 iterations (the shipped
 policy), then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000 iterations: all
@@ -49,10 +52,13 @@ import argparse
 import json
 import re
 import shlex
+import signal
 import subprocess
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
+
+from lasmp.inputs import InputError, int_arg, read_json
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS = ROOT / "runs" / "study"
@@ -178,18 +184,40 @@ def saved_at(d: Path, it: int) -> Path:
 
 
 def execute(cmd: list[str], log: Path) -> None:
-    """Run cmd niced, after appending it to log with the time and the commit; a log in runs/study/ is
-    mirrored in results/study/ (committed, so the commands outlive the machine)."""
+    """Run cmd niced, after appending it to log with the time and the commit. A log in runs/study/ is
+    mirrored in results/study/ (committed, so the commands outlive the machine) once cmd has succeeded:
+    a failed command made nothing to commit. A failure (or a Ctrl-C) ends the study with cmd's exit
+    status: cmd has said why, and a traceback of this script would only bury it."""
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
     when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
-    logs = [log] + ([RESULTS / log.relative_to(RUNS)] if log.is_relative_to(RUNS) else [])
-    for path in logs:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("a") as f:
-            f.write(f"# {when}, at {commit.stdout.strip() or 'no commit'}, nice -n 10\n")
-            f.write(shlex.join(cmd) + "\n")
+    entry = f"# {when}, at {commit.stdout.strip() or 'no commit'}, nice -n 10\n{shlex.join(cmd)}\n"
+    append(log, entry)
     print("+", shlex.join(cmd), flush=True)
-    subprocess.run(["nice", "-n", "10", *cmd], cwd=ROOT, check=True)
+    status = run_to_its_end(["nice", "-n", "10", *cmd])
+    if status != 0:
+        raise SystemExit(status)
+    if log.is_relative_to(RUNS):
+        append(RESULTS / log.relative_to(RUNS), entry)
+
+
+def append(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a") as f:
+        f.write(text)
+
+
+def run_to_its_end(cmd: list[str]) -> int:
+    """cmd's exit status (128 + N for a cmd killed by signal N, as a shell says it), run in ROOT.
+    Ctrl-C at the terminal reaches cmd too (one process group), and train.py answers it by saving a
+    checkpoint and exiting 130. Meanwhile this process ignores it, as a shell waits for its foreground
+    job: left to Python, the interrupt would kill cmd a quarter of a second later, during its save.
+    A no-op handler rather than SIG_IGN, which cmd would inherit: it must take the Ctrl-C itself."""
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: None)
+    try:
+        status = subprocess.run(cmd, cwd=ROOT).returncode
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    return status if status >= 0 else 128 - status
 
 
 def check_learner(cpuinfo: str | None = None) -> None:
@@ -383,7 +411,7 @@ def compare() -> str:
         path = result_dir(m, s, BUDGET, root=FIRST_PASS) / f"curves_{BUDGET}.json"
         if not path.exists():
             raise SystemExit(f"{path} does not exist: the first pass's {m} seed {s} is not in this checkout")
-        curves[m, s] = json.loads(path.read_text())["windows"]
+        curves[m, s] = read_json(path)["windows"]
     head = " | ".join(f"{label[m]}, seed {s}" for m, s in sides)
     lines = [f"| iterations | {head} |", "|---" * (len(sides) + 1) + "|"]
     for lo in range(0, BUDGET, 50):
@@ -417,6 +445,20 @@ def _cell(entry: dict, metric: str, fmt: str) -> str:
     return " / ".join(f"{v:{fmt}}" for v in m["per_seed"])
 
 
+def summary_methods(summary_path: Path | None = None) -> dict:
+    """summary.json's rows by name (RESULTS/summary.json when None); InputError naming the file when it
+    is missing, cut short or not a summary."""
+    path = summary_path or RESULTS / "summary.json"
+    if not path.exists():
+        raise InputError(f"{path}: no such file; write it with `python scripts/study.py summary`")
+    summary = read_json(path)
+    if not isinstance(summary.get("methods"), dict):
+        raise InputError(
+            f'{path}: no "methods" object: not the summary `python scripts/study.py summary` writes'
+        )
+    return summary["methods"]
+
+
 def table(summary_path: Path | None = None, wide: bool = False, paper: bool = False) -> str:
     """A results table (Markdown) from summary.json. The README's (default): its rows (TABLE_ROWS;
     R-S beside its oracle), the paper's five metrics, the number of seeds. `wide`: docs/results.md's,
@@ -424,7 +466,7 @@ def table(summary_path: Path | None = None, wide: bool = False, paper: bool = Fa
     yet evaluated is left out. `paper`: the paper's rows follow ours (`paper_rows`)."""
     from lasmp.eval.results_table import SHORT_LEARNER
 
-    methods = json.loads((summary_path or RESULTS / "summary.json").read_text())["methods"]
+    methods = summary_methods(summary_path)
     columns = WIDE_COLUMNS if wide else TABLE_COLUMNS
     heads = [h for h, _ in columns.values()] + (["learner per seed"] if wide else [])
     lines = ["| method | seeds | " + " | ".join(heads) + " |", "|---" * (len(heads) + 2) + "|"]
@@ -453,7 +495,7 @@ def headline(summary_path: Path | None = None) -> str:
     Still); the paper's: its mean ± its std. A row not yet evaluated is left out."""
     from lasmp.eval.paper import paper_row
 
-    methods = json.loads((summary_path or RESULTS / "summary.json").read_text())["methods"]
+    methods = summary_methods(summary_path)
     heads = [f"{h}: ours | paper" for h, _ in TABLE_COLUMNS.values()]
     lines = [
         "| ours, vs the paper's row | " + " | ".join(heads) + " |",
@@ -485,7 +527,7 @@ def ordering(summary_path: Path | None = None) -> str:
     orders nothing yet. LAS-MP+'s ablations are also set against FRESH_ROW, LAS-MP+ on the seeds no
     screening run saw, once it has three. The paper's Table II has every ablation above LAS-MP in
     every one of these metrics."""
-    methods = json.loads((summary_path or RESULTS / "summary.json").read_text())["methods"]
+    methods = summary_methods(summary_path)
     lines = [
         "| full method | ablation | seeds | " + " | ".join(h for h, _ in TABLE_COLUMNS.values()) + " |",
         "|---" * (len(TABLE_COLUMNS) + 3) + "|",
@@ -583,11 +625,19 @@ def main(argv=None) -> None:
         s.add_argument("seed", type=int, choices=SEEDS + FRESH_SEEDS)
         s.add_argument(
             "--until" if name == "train" else "--at",
-            type=int,
             dest="n",
+            type=int_arg(1),
             help="iterations (default: the method's budget, 450; LAS-MP+'s PLUS_BUDGET)",
         )
     args = p.parse_args(argv)
+    try:
+        run_step(args)
+    except InputError as err:  # a file the step reads (summary.json, a learning curve), named in one line
+        raise SystemExit(f"error: {err}") from None
+
+
+def run_step(args: argparse.Namespace) -> None:
+    """The step the command line names."""
     if args.cmd == "plan":
         for step in steps():
             print(("done " if is_done(*step) else "todo ") + " ".join(map(str, step)))

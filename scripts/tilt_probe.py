@@ -28,13 +28,14 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from lasmp.algo.checkpoint import checkpoint_file  # noqa: E402
 from lasmp.atomic import atomic_open  # noqa: E402
 from lasmp.envs.robot import as_numpy  # noqa: E402
-from lasmp.eval.cli import DEFAULT_BENCHMARK, build, load_or_make_benchmark  # noqa: E402
+from lasmp.eval.benchmark import Benchmark  # noqa: E402
+from lasmp.eval.cli import DEFAULT_BENCHMARK, INPUT_ERRORS, build, load_or_make_benchmark  # noqa: E402
 from lasmp.eval.metrics import angle_between, in_heading, z_axis_h  # noqa: E402
-from lasmp.eval.outdir import checkpoint_file  # noqa: E402
 from lasmp.eval.run import BenchmarkSource  # noqa: E402
-from lasmp.inputs import int_arg  # noqa: E402
+from lasmp.inputs import InputError, check_out_file, int_arg  # noqa: E402
 
 SLOW_HZ = 0.5
 
@@ -101,14 +102,13 @@ def tilt_split(
     }
 
 
-def play(checkpoint: Path, episodes: int, benchmark: Path) -> tuple[dict, float]:
-    """Play Xi_eval's first `episodes` (one per env, the checkpoint's policy, deterministic) and record
-    the arrays tilt_split takes; (those arrays, the policy step in s)."""
-    bench = load_or_make_benchmark(benchmark)
+def play(checkpoint: Path, episodes: int, bench: Benchmark) -> tuple[dict, float]:
+    """Play the benchmark's first `episodes` (one per env, the policy of the checkpoint file,
+    deterministic) and record the arrays tilt_split takes; (those arrays, the policy step in s)."""
     args = argparse.Namespace(
         batch_envs=episodes, num_trajectories=episodes, seed=0, controller=None, checkpoint=checkpoint
     )
-    env, controller, _, _ = build(args, checkpoint=checkpoint_file(checkpoint))
+    env, controller, _, _ = build(args, checkpoint=checkpoint)
     env.episode_source = BenchmarkSource(bench, episodes, episodes)
     step: dict = {}
 
@@ -154,7 +154,14 @@ def main(argv=None) -> int:
     p.add_argument("--benchmark", type=Path, default=DEFAULT_BENCHMARK)
     p.add_argument("--json", type=Path, help="write the figures here too")
     args = p.parse_args(argv)
-    arrays, dt_s = play(args.checkpoint, args.episodes, args.benchmark)
+    try:  # the files named, before the minutes of play
+        checkpoint = checkpoint_file(args.checkpoint)
+        if args.json:
+            check_out_file(args.json, suffixes=(".json",), force=True, option="--json")
+        bench = load_or_make_benchmark(args.benchmark)
+    except (*INPUT_ERRORS, InputError) as err:
+        p.error(str(err))
+    arrays, dt_s = play(checkpoint, args.episodes, bench)
     figures = summary(tilt_split(**arrays, dt_s=dt_s))
     for k, v in figures.items():
         print(f"{k:22s} {v:.4f}" if isinstance(v, float) else f"{k:22s} {v}")

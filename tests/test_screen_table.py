@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
+import pytest
 from testkit import load_script
 
 from lasmp.eval import episodes as ep
@@ -43,3 +46,16 @@ def test_a_baseline_row_is_read_from_the_study_s_episode_record(tmp_path, monkey
     cells = [c.strip() for c in table.row("lasmp_float32", seed_dir).strip("|").split("|")]
     # candidate, seed, collision, height violation, world tilt, 5 stance/mirror cells (none), the two hard cases
     assert cells[:5] == ["lasmp_float32", "0", "0.100", "0.250", "0.125"] and cells[-2:] == ["0.200", "0.500"]
+
+
+def test_a_truncated_metrics_file_is_named_in_one_line_not_a_json_error(tmp_path, monkeypatch, capsys):
+    table = load_script("scripts/screen_table.py")
+    monkeypatch.setattr(table, "SCREEN", tmp_path)
+    monkeypatch.setattr(table, "BASELINES", {})
+    metrics = tmp_path / "candidate" / "seed0" / "metrics_2000.json"
+    metrics.parent.mkdir(parents=True)
+    metrics.write_text(json.dumps({"metrics": {"collision_rate": {"mean": 0.1}}})[:-3])  # a copy cut short
+    with pytest.raises(SystemExit) as stop:
+        table.main([])
+    assert str(stop.value) == f"error: {metrics}: truncated: the file ends before its JSON does"
+    assert capsys.readouterr().out.startswith("| candidate | seed |")  # the header, then the error

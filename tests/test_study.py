@@ -198,9 +198,70 @@ def test_each_command_is_logged_with_its_time_and_commit_before_it_runs(study, t
     assert shlex.split(command) == cmd
     assert (tmp_path / "ran").exists()  # it ran, in ROOT
     mirror = tmp_path / "results" / "study" / "lasmp" / "seed0.commands"
-    assert mirror.read_text() == log.read_text()  # committed beside the results
-    with pytest.raises(subprocess.CalledProcessError):
+    assert mirror.read_text() == log.read_text()  # committed beside the results, once it succeeded
+    with pytest.raises(SystemExit) as stop:  # the command's own status, not a CalledProcessError
         study.real_execute([sys.executable, "-c", "raise SystemExit(3)"], log)
+    assert stop.value.code == 3
+    assert len(log.read_text().splitlines()) == 4 and len(mirror.read_text().splitlines()) == 2
+
+
+def test_a_failed_training_ends_the_study_with_its_status_and_is_not_added_to_the_committed_commands(
+    study, monkeypatch, tmp_path
+):
+    """The committed .commands file says how the committed results were made: a training that failed
+    made none. The uncommitted log beside the run keeps it, with every command tried."""
+    monkeypatch.setattr(study, "execute", study.real_execute)
+    (tmp_path / "train.py").write_text("raise SystemExit(2)  # as train.py refusing its configuration\n")
+    committed = tmp_path / "results" / "study" / "lasmp" / "seed0.commands"
+    committed.parent.mkdir(parents=True)
+    committed.write_text("# an earlier sitting\ntrain.py seed=0\n")
+    with pytest.raises(SystemExit) as stop:
+        study.main(["train", "lasmp", "0"])
+    assert stop.value.code == 2
+    assert committed.read_text() == "# an earlier sitting\ntrain.py seed=0\n"
+    tried = (tmp_path / "runs" / "study" / "lasmp" / "seed0.commands").read_text().splitlines()
+    assert len(tried) == 2 and "train.py" in tried[1] and "seed=0" in tried[1]
+
+
+# train.py as it meets a Ctrl-C: the terminal signals its whole foreground process group (this, and the
+# study waiting for it); the training saves a checkpoint, which takes a moment, and exits 130
+INTERRUPTED_TRAINING = """
+import os, signal, time
+try:
+    os.killpg(0, signal.SIGINT)
+    time.sleep(10)
+except KeyboardInterrupt:
+    time.sleep(0.5)
+    open("saved", "w").close()
+    print("interrupted: saved model_3.pt", flush=True)
+    raise SystemExit(130)
+"""
+
+
+def test_a_ctrl_c_during_training_waits_for_its_save_and_ends_the_study_with_its_status_and_no_traceback(
+    tmp_path,
+):
+    """Python's subprocess.run kills the child a quarter of a second after the parent's interrupt and
+    then raises it: the save cut short, a traceback after the training's own last line."""
+    (tmp_path / "train.py").write_text(INTERRUPTED_TRAINING)
+    study = (
+        "import importlib.util, sys\n"
+        "from pathlib import Path\n"
+        f"spec = importlib.util.spec_from_file_location('study', {str(ROOT / 'scripts' / 'study.py')!r})\n"
+        "study = importlib.util.module_from_spec(spec)\n"
+        "spec.loader.exec_module(study)\n"
+        f"study.ROOT = Path({str(tmp_path)!r})\n"
+        "study.RUNS, study.RESULTS = study.ROOT / 'runs' / 'study', study.ROOT / 'results' / 'study'\n"
+        "study.check_learner = lambda: None  # this CPU may lack bfloat16\n"
+        "study.main(['train', 'lasmp', '0'])\n"
+    )
+    done = subprocess.run(  # a session of its own: the Ctrl-C reaches this one and its child, not pytest
+        [sys.executable, "-c", study], capture_output=True, text=True, timeout=60, start_new_session=True
+    )
+    assert done.returncode == 130, done.stderr
+    assert (tmp_path / "saved").exists() and done.stdout.endswith("interrupted: saved model_3.pt\n")
+    assert "Traceback" not in done.stderr, done.stderr
+    assert not (tmp_path / "results" / "study" / "lasmp" / "seed0.commands").exists()
 
 
 def test_rs_is_evaluated_twice_and_counts_as_done_only_with_both_controllers(study):
@@ -354,6 +415,21 @@ def test_compare_names_the_missing_run(study):
     evaluated(study.result_dir("lasmp_float32", 0, 450))  # a current-pass directory is not the first pass's
     with pytest.raises(SystemExit, match="entropy_0.01/lasmp_float32/seed0/curves_450.json does not exist"):
         study.compare()
+
+
+def test_a_truncated_summary_is_named_in_one_line(study, capsys):
+    path = study.RESULTS / "summary.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"methods": {"LAS-MP": {"seeds": ["a", "b", "c"]}}})[:-7])  # a copy cut short
+    for command in (["table"], ["table", "--headline"], ["ordering"]):
+        with pytest.raises(SystemExit) as stop:
+            study.main(command)
+        assert str(stop.value) == f"error: {path}: truncated: the file ends before its JSON does"
+    path.unlink()
+    with pytest.raises(
+        SystemExit, match="summary.json: no such file; write it with `python scripts/study.py"
+    ):
+        study.main(["table"])
 
 
 def test_the_table_with_paper_puts_every_row_of_the_papers_table_ii_below_ours_marked_as_the_papers(study):

@@ -9,6 +9,9 @@ if __name__ == "__main__":
     from lasmp.ctrl_c import quiet_ctrl_c
 
     quiet_ctrl_c()  # before torch and MuJoCo load: a Ctrl-C then says one line
+    from lasmp.preflight import exit_unless_mujoco_imports
+
+    exit_unless_mujoco_imports()  # a bad MUJOCO_GL: one line, not the traceback of the import below
     from lasmp.play import main
 
     sys.exit(main(sys.argv[1:]))

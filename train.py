@@ -11,9 +11,13 @@ from lasmp.ctrl_c import quiet_ctrl_c
 
 quiet_ctrl_c()  # before torch and Hydra load: a Ctrl-C then says one line
 
+from lasmp.preflight import exit_unless_mujoco_imports  # noqa: E402
+
+exit_unless_mujoco_imports()  # a bad MUJOCO_GL: one line, not the traceback of the first import below
+
 import hydra  # noqa: E402
 
-from lasmp.hydra_cli import unknown_key_error  # noqa: E402
+from lasmp.hydra_cli import Sweep, unknown_key_error  # noqa: E402
 from lasmp.train_cfg import register_configs  # noqa: E402
 
 CONFIG_PATH, CONFIG_NAME = "cfg", "config"
@@ -21,10 +25,16 @@ CONFIG_PATH, CONFIG_NAME = "cfg", "config"
 register_configs()
 
 
+SWEEP: Sweep | None = None  # with -m: the sweep's jobs and how each ended (lasmp/hydra_cli.py)
+
+
 @hydra.main(version_base="1.3", config_path=CONFIG_PATH, config_name=CONFIG_NAME)
 def main(cfg) -> None:
     from lasmp.train import main as train_main
 
+    if SWEEP is not None:  # a failed job is said, and the sweep goes on (docs/usage.md)
+        SWEEP.run_job(lambda: train_main(cfg))
+        return
     code = train_main(cfg)
     if code:
         raise SystemExit(code)
@@ -35,4 +45,7 @@ if __name__ == "__main__":
     if error:
         print(f"error: {error}", file=sys.stderr)
         sys.exit(2)
+    SWEEP = Sweep.of(sys.argv[1:])
     main()
+    if SWEEP is not None:
+        sys.exit(SWEEP.report())

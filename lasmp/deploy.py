@@ -17,9 +17,16 @@ import torch
 from rsl_rl.utils import resolve_class, resolve_obs_groups
 from tensordict import TensorDict
 
-from lasmp.algo.checkpoint import check_compatible, not_fitting, read_checkpoint, set_rng_state
+from lasmp.algo.checkpoint import (
+    CheckpointError,
+    check_compatible,
+    not_fitting,
+    read_checkpoint,
+    set_rng_state,
+)
 from lasmp.checkpoint_cfg import checkpoint_cfg
 from lasmp.envs.registry import make_env
+from lasmp.preflight import backend_error
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
 
 
@@ -81,6 +88,17 @@ def load_policy(
     return Deployed(build_policy(data, cfg, mixin), cfg, data)
 
 
+def check_backend(deployed: Deployed) -> None:
+    """CheckpointError where the physics backend the checkpoint was trained on (env.backend, which its
+    env keeps) cannot run here: a warp checkpoint without MuJoCo Warp, said before the env is built."""
+    path = deployed.checkpoint["path"]
+    error = backend_error(
+        deployed.cfg.env.backend, f"checkpoint {path} was trained with env.backend=warp; its env needs"
+    )
+    if error:
+        raise CheckpointError(error)
+
+
 def load_deploy_env(
     path,
     num_envs: int = 1,
@@ -95,6 +113,7 @@ def load_deploy_env(
     curriculum. Its random streams: with `seed` None, the checkpoint's own at the save (its run's
     seed, continued); with a seed, fresh streams from that seed, so that seeds give other episodes."""
     deployed = load_policy(path, seed, num_envs, trajectories, env_overrides, mixin)
+    check_backend(deployed)
     cfg, data = deployed.cfg, deployed.checkpoint
     torch.manual_seed(cfg.seed)
     env = make_env(cfg.task, cfg.env, cfg.device)

@@ -3,11 +3,18 @@ Hydra words against us: an override naming no config key. Hydra's message sugges
 with `+`, which the README rules out and validation would refuse anyway
 (`lasmp.config.check_known_keys`); ours names the key and the keys valid where it points. A key
 that a recipe (cfg/recipe/) sets and the env lacks is worded as the recipe's: the recipes are the
-moving platform's."""
+moving platform's. A sweep (`-m`) is checked job by job, as Hydra's basic sweeper expands it.
+
+`Sweep` keeps a sweep's jobs going past one that fails (docs/usage.md): a failed job is said when it
+ends and again, with every other failed job, when the sweep ends; an interrupted job stops the sweep,
+naming the jobs that did not run."""
 
 from __future__ import annotations
 
 import re
+import sys
+import traceback
+from collections.abc import Callable
 from pathlib import Path
 
 
@@ -20,18 +27,48 @@ def _compose(config_dir: Path, config_name: str, overrides: list[str]):
 
 def unknown_key_error(argv: list[str], config_dir: Path, config_name: str) -> str | None:
     """The one-line error for the override in `argv` (train.py's arguments) that names no key of
-    the config `config_name` in `config_dir`, or None. Every other failure is left to Hydra's app,
+    the config `config_name` in `config_dir`, or None. With `-m`, each job of the sweep is checked
+    (a sweep's comma lists do not compose as one config). Every other failure is left to Hydra's app,
     which reports it as it always has."""
+    args = _parse_args(argv)
+    if args.config_path or args.config_dir or args.config_name:  # another config than the one checked here
+        return None
+    if not args.multirun:
+        return _unknown_key(args.overrides, config_dir, config_name)
+    for job in sweep_jobs(args.overrides) or []:
+        error = _unknown_key(job, config_dir, config_name)
+        if error:
+            return error
+    return None
+
+
+def _parse_args(argv: list[str]):
     from hydra._internal.utils import get_args_parser  # hydra.main's own: the overrides it will compose
+
+    return get_args_parser().parse_args(argv)
+
+
+def sweep_jobs(overrides: list[str]) -> list[list[str]] | None:
+    """The jobs of `train.py -m OVERRIDES`, each its list of overrides, in the order (and so with the
+    numbers #0, #1, ...) Hydra's basic sweeper launches them; None where they cannot be expanded here
+    (Hydra's app then reports why)."""
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        (batch,) = BasicSweeper.split_arguments(OverridesParser.create().parse_overrides(overrides), None)
+    except Exception:  # a sweep this parser cannot expand alone (glob over a group, an interval)
+        return None
+    return [list(job) for job in batch]
+
+
+def _unknown_key(overrides: list[str], config_dir: Path, config_name: str) -> str | None:
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from omegaconf import OmegaConf
     from omegaconf.errors import ConfigAttributeError, ConfigKeyError
 
-    args = get_args_parser().parse_args(argv)
-    if args.config_path or args.config_dir or args.config_name:  # another config than the one checked here
-        return None
     try:
-        _compose(config_dir, config_name, args.overrides)
+        _compose(config_dir, config_name, overrides)
         return None
     except Exception as err:  # only the unknown key is ours to word; Hydra reports the rest
         recipe = re.match(r"In 'recipe/(\w+)': ConfigKeyError.*full_key: (\S+)", str(err), re.DOTALL)
@@ -49,7 +86,7 @@ def unknown_key_error(argv: list[str], config_dir: Path, config_name: str) -> st
     # task=rough_static changes env's keys)
     others = [
         o.input_line
-        for o in OverridesParser.create().parse_overrides(args.overrides)
+        for o in OverridesParser.create().parse_overrides(overrides)
         if not f"{o.key_or_group}.".startswith(f"{key}.")
     ]
     try:
@@ -58,3 +95,78 @@ def unknown_key_error(argv: list[str], config_dir: Path, config_name: str) -> st
         return message
     node = OmegaConf.select(cfg, parent) if parent else cfg
     return f"{message}; valid keys{f' of {parent}' if parent else ''}: {sorted(node)}"
+
+
+class Sweep:
+    """A sweep's (`train.py -m ...`) jobs and how each ended. A job that fails (bad input, exit 2; a
+    run that could not go on, exit 1; an unexpected exception, its traceback and exit 1) is said when it
+    ends, and the sweep goes on with the next job; `report` then lists every failed job. A job stopped
+    by Ctrl-C or SIGTERM (exit 128 + the signal) stops the sweep, naming the jobs that did not run."""
+
+    def __init__(self, jobs: list[list[str]] | None):
+        self.jobs = jobs  # None: not expanded here (the labels are then the job numbers alone)
+        self.failed: dict[int, int] = {}  # job number -> exit code
+        self.ran = 0
+
+    @classmethod
+    def of(cls, argv: list[str]) -> Sweep | None:
+        """The sweep `argv` (train.py's arguments) asks for; None without -m."""
+        args = _parse_args(argv)
+        return cls(sweep_jobs(args.overrides)) if args.multirun else None
+
+    def label(self, num: int) -> str:
+        """Job #num with the overrides that tell it from the sweep's other jobs."""
+        if not self.jobs or num >= len(self.jobs):
+            return f"#{num}"
+        own = self.jobs[num]
+        varying = [o for o in own if not all(o in job for job in self.jobs)] or own
+        return f"#{num} ({' '.join(varying)})"
+
+    def run_job(self, job: Callable[[], int]) -> None:
+        """Run one job (in Hydra's task function) and keep its exit code; SystemExit if it was interrupted."""
+        from hydra.core.hydra_config import HydraConfig
+
+        num = HydraConfig.get().job.num
+        try:
+            code = job()
+        except Exception:  # a bug, not a user's mistake: its traceback, and the other jobs still run
+            traceback.print_exc()
+            code = 1
+        self.ran += 1
+        if code >= 128:  # Ctrl-C or SIGTERM: the user wants the sweep to stop, not to skip one job
+            rest = self.jobs[num + 1 :] if self.jobs is not None else None
+            if rest is None:
+                not_run = f"the jobs after #{num} did not run"
+            elif rest:
+                not_run = f"did not run: {', '.join(self.label(n) for n in range(num + 1, len(self.jobs)))}"
+            else:
+                not_run = "it was the last job"
+            failed = f"; failed before: {self._listed()}" if self.failed else ""
+            print(
+                f"the sweep stopped at job {self.label(num)}: {not_run}{failed}", file=sys.stderr, flush=True
+            )
+            raise SystemExit(code)
+        if code:
+            self.failed[num] = code
+            print(
+                f"sweep: job {self.label(num)} failed (exit {code}); going on with the next job",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    def _listed(self) -> str:
+        return ", ".join(f"{self.label(n)} exit {code}" for n, code in self.failed.items())
+
+    def report(self) -> int:
+        """After the sweep: the failed jobs in one line (their own errors were said as each ended); the
+        exit code, the first failed job's (0 if none failed)."""
+        if not self.failed:
+            return 0
+        total = len(self.jobs) if self.jobs is not None else self.ran
+        print(
+            f"error: {len(self.failed)} of {total} jobs of the sweep failed: {self._listed()} (each job's error "
+            "is above); the other jobs ran to their end",
+            file=sys.stderr,
+            flush=True,
+        )
+        return next(iter(self.failed.values()))

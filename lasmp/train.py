@@ -28,6 +28,7 @@ from lasmp.config import ConfigError
 from lasmp.envs import registry
 from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.inputs import SEED_MAX
+from lasmp.preflight import training_environment_error
 from lasmp.recipe import run_label, run_slug
 from lasmp.resume import Resume, check_run_dir, explicit_keys, hydra_overrides, resume_command
 from lasmp.rundir import RunDirError, claim, run_checkpoints
@@ -120,6 +121,10 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
     start = WarmStart.check(cfg, explicit) if cfg.warm_start else None
     resume = Resume.check(cfg, explicit) if cfg.resume and not start else None
     cfg = resume.cfg if resume else start.cfg if start else cfg
+    # what this machine must bring (a W&B login, MuJoCo Warp), checked before any env is built
+    missing = training_environment_error(cfg)
+    if missing:
+        raise ConfigError(missing)
     ranks = dp.ranks_from_env()  # torchrun: rank 0 alone holds the run directory, logs and saves
     # an env.num_envs that cannot fit, refused before any allocation
     check_memory(cfg, dp.local_world_size() if ranks.distributed else 1)

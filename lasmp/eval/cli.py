@@ -41,7 +41,7 @@ from pathlib import Path
 import torch
 
 from lasmp.algo.checkpoint import CheckpointError, check_compatible
-from lasmp.deploy import load_policy
+from lasmp.deploy import check_backend, load_policy
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
 from lasmp.eval import episodes as ep
@@ -135,6 +135,7 @@ def build(args, extra_env: dict | None = None, checkpoint: Path | None = None):
         raise CheckpointError(
             f"--checkpoint without --controller needs a moving_platform policy, got {cfg.task}"
         )
+    check_backend(deployed)  # a warp checkpoint without MuJoCo Warp: refused before the env is built
     env = policy_eval_env(cfg, n, args.seed, extra_env)
     check_compatible(deployed.checkpoint, env)
     method = f"{recipe_name(cfg)} checkpoint {args.checkpoint} ({cfg.policy.name})"

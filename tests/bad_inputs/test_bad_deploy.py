@@ -5,7 +5,9 @@ X12: nothing tied policy.json to its policy.onnx, so an edited `action_scale` of
 ten times too far; now the sidecar carries the ONNX file's sha256 and must equal the metadata inside
 it, and values no robot should run with are refused. X06 and X07: a NaN or Inf in the newest
 observation gave NaN actions, which `np.clip` passed on as NaN targets; now the loop holds the last
-safe target (the nominal stance before the first good step)."""
+safe target (the nominal stance before the first good step). One float64 or one 43-value observation
+entered the window, and every later, correct call raised; now an observation of the wrong shape or
+dtype is refused (ValueError, expected and got) before anything changes, and float64 is cast to float32."""
 
 from __future__ import annotations
 
@@ -229,3 +231,61 @@ def test_export_refuses_metadata_that_already_holds_the_hash_key_before_any_work
     with pytest.raises(ValueError, match=SIDECAR_HASH_KEY):
         export_policy(None, tmp_path / "out", {SIDECAR_HASH_KEY: "0" * 64})
     assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# An observation of the wrong length or dtype
+# ---------------------------------------------------------------------------------------------
+def loop_state(ns: dict) -> tuple:
+    """What control_step keeps between calls: the window, the last action and the held target."""
+    return tuple(None if ns[k] is None else ns[k].copy() for k in ("window", "last_action", "q_target"))
+
+
+BAD_OBSERVATIONS = {
+    "43 values": (lambda o: o[:43], r"expected shape \(44,\) .*got shape \(43,\)"),
+    "45 values": (lambda o: np.append(o, np.float32(0.0)), r"expected shape \(44,\) .*got shape \(45,\)"),
+    "a (1, 44) row": (lambda o: o[None], r"expected shape \(44,\) .*got shape \(1, 44\)"),
+    "integers": (lambda o: np.round(o).astype(np.int64), r"expected dtype float32 .*got int64"),
+    "booleans": (lambda o: o > 0, r"expected dtype float32 .*got bool"),
+}
+
+
+@pytest.mark.parametrize("bad", list(BAD_OBSERVATIONS))
+def test_an_observation_of_the_wrong_length_or_dtype_is_refused_and_the_next_calls_act_as_without_it(
+    deploy, bad
+):
+    change, message = BAD_OBSERVATIONS[bad]
+    clean = documented_loop()
+    expected = [clean["control_step"](standing_observation(clean, k)) for k in range(6)]
+    ns = documented_loop()
+    sent = [ns["control_step"](standing_observation(ns, k)) for k in range(3)]
+    before = loop_state(ns)
+    with pytest.raises(ValueError, match=message):
+        ns["control_step"](change(standing_observation(ns, 3)))
+    for kept, now in zip(before, loop_state(ns), strict=True):  # nothing changed
+        np.testing.assert_array_equal(now, kept)
+    sent += [ns["control_step"](standing_observation(ns, k)) for k in range(3, 6)]
+    np.testing.assert_array_equal(np.array(sent), np.array(expected))
+
+
+@pytest.mark.parametrize("bad", ["43 values", "integers"])
+def test_a_refused_first_observation_leaves_no_window_and_the_loop_starts_with_the_next(deploy, bad):
+    change, message = BAD_OBSERVATIONS[bad]
+    clean = documented_loop()
+    expected = [clean["control_step"](standing_observation(clean, k)) for k in range(3)]
+    ns = documented_loop()
+    with pytest.raises(ValueError, match=message):
+        ns["control_step"](change(standing_observation(ns, 0)))
+    assert ns["window"] is None
+    sent = [ns["control_step"](standing_observation(ns, k)) for k in range(3)]
+    np.testing.assert_array_equal(np.array(sent), np.array(expected))
+
+
+def test_a_float64_observation_is_cast_to_float32_and_acts_as_its_float32_values(deploy):
+    as_float32 = documented_loop()
+    expected = [as_float32["control_step"](standing_observation(as_float32, k)) for k in range(4)]
+    ns = documented_loop()
+    sent = [ns["control_step"](standing_observation(ns, k).astype(np.float64)) for k in range(4)]
+    np.testing.assert_array_equal(np.array(sent), np.array(expected))
+    assert ns["window"].dtype == np.float32
+    np.testing.assert_array_equal(ns["window"], as_float32["window"])

@@ -16,35 +16,84 @@ field names.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, is_dataclass
 from typing import Any, TypeVar
 
 from omegaconf import OmegaConf
 
+from lasmp.inputs import InputError, check_seed
+
 
 class ConfigError(ValueError):
     """A configuration value is out of range or inconsistent; the message names the field."""
 
 
-def check_range(
-    name: str, lo_hi: tuple[float, float] | list[float], lo: float = -math.inf, hi: float = math.inf
-):
-    """Refuse a `[low, high]` pair that is not finite, not ordered or not within [lo, hi]."""
-    if len(lo_hi) != 2:
-        raise ConfigError(f"{name} must be a [low, high] pair, got {list(lo_hi)}")
-    a, b = float(lo_hi[0]), float(lo_hi[1])
-    if not (math.isfinite(a) and math.isfinite(b)) or a > b:
-        raise ConfigError(f"{name} must be a finite [low, high] with low <= high, got {list(lo_hi)}")
-    if a < lo or b > hi:
-        raise ConfigError(f"{name} must lie within [{lo}, {hi}], got {list(lo_hi)}")
+def _text(x: float) -> str:
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e16 else repr(float(x))
 
 
-def check_positive(name: str, value: float, allow_zero: bool = False):
-    """Refuse a non-finite value or one <= 0 (< 0 with `allow_zero`)."""
-    ok = value >= 0 if allow_zero else value > 0
-    if not (math.isfinite(value) and ok):
-        raise ConfigError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {value}")
+@dataclass(frozen=True)
+class Bound:
+    """The values a numeric setting may take, and the physical or computational reason for the limits:
+    [lo, hi], or open at an end (`open_lo`: a scale or a time, where 0 means nothing). Every number of
+    every config has one (a [low, high] pair is checked by `check_range`, a reward weight by
+    `lasmp.envs.rewards.check_reward_weights`); tests/bad_inputs/test_bad_setting_ranges.py walks them all."""
+
+    lo: float
+    hi: float
+    why: str
+    open_lo: bool = False
+    open_hi: bool = False
+
+    def interval(self) -> str:
+        return (
+            f"{'(' if self.open_lo else '['}{_text(self.lo)}, {_text(self.hi)}{')' if self.open_hi else ']'}"
+        )
+
+    def holds(self, value: Any, integer: bool = False) -> bool:
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral if integer else numbers.Real):
+            return False
+        above = self.lo < value if self.open_lo else self.lo <= value  # False for NaN
+        below = value < self.hi if self.open_hi else value <= self.hi
+        return above and below
+
+    def check(self, name: str, value: Any, integer: bool = False) -> None:
+        """Refuse `value` (a number, or a list of numbers: each of them) outside the bound, naming `name`."""
+        many = isinstance(value, (list, tuple))
+        if not all(self.holds(v, integer) for v in (value if many else [value])):
+            what = ("integers" if many else "an integer") if integer else ("numbers" if many else "a number")
+            raise ConfigError(
+                f"{name} must {'hold' if many else 'be'} {what} in {self.interval()} ({self.why}), "
+                f"got {list(value) if many else value!r}"
+            )
+
+
+def check_bounds(cfg: Any, p: str, bounds: Mapping[str, Bound]) -> None:
+    """Each field of dataclass `cfg` that `bounds` names within its Bound (each number of a list), named
+    `p.field`; a field declared `int` (or `list[int]`) must hold integers."""
+    declared = {f.name: str(f.type) for f in fields(cfg)}
+    for name, bound in bounds.items():
+        bound.check(f"{p}.{name}", getattr(cfg, name), declared[name] in ("int", "list[int]"))
+
+
+def check_range(name: str, lo_hi: tuple[float, float] | list[float], bound: Bound) -> None:
+    """Refuse a `[low, high]` pair that is not ordered or whose ends are not within `bound`."""
+    pair = list(lo_hi)
+    if not (len(pair) == 2 and bound.holds(pair[0]) and bound.holds(pair[1]) and pair[0] <= pair[1]):
+        raise ConfigError(
+            f"{name} must be a [low, high] pair with low <= high, both in {bound.interval()} ({bound.why}), "
+            f"got {pair}"
+        )
+
+
+def check_seed_key(name: str, value: Any) -> None:
+    """The one rule of every seed (`lasmp.inputs.check_seed`) as a ConfigError."""
+    try:
+        check_seed(value, name)
+    except InputError as err:
+        raise ConfigError(str(err)) from None
 
 
 def check_known_keys(cfg: Any, p: str = "") -> None:
@@ -102,23 +151,36 @@ class SimCfg:
     warp_constraints_per_env: int = 256  # warp only: constraint rows per env
 
     def validate(self, p: str):
-        check_positive(f"{p}.dt_s", self.dt_s)
-        if self.dt_s > 0.02:
-            raise ConfigError(f"{p}.dt_s must be <= 0.02 s for stable contacts, got {self.dt_s}")
-        if self.decimation < 1:
-            raise ConfigError(f"{p}.decimation must be >= 1, got {self.decimation}")
-        if self.num_threads < 0:
-            raise ConfigError(f"{p}.num_threads must be >= 0 (0 = all cores), got {self.num_threads}")
-        if self.solver_iterations < 1:
-            raise ConfigError(f"{p}.solver_iterations must be >= 1, got {self.solver_iterations}")
-        check_positive(f"{p}.solver_tolerance", self.solver_tolerance)
+        check_bounds(self, p, SIM_BOUNDS)
+        longest = MAX_POLICY_DT_S / self.dt_s
+        Bound(1, int(longest + 1e-9), POLICY_DT_WHY).check(f"{p}.decimation", self.decimation, integer=True)
         if self.cone not in ("pyramidal", "elliptic"):
             raise ConfigError(f"{p}.cone must be 'pyramidal' or 'elliptic', got {self.cone!r}")
-        check_positive(f"{p}.impratio", self.impratio)
-        if self.noslip_iterations < 0:
-            raise ConfigError(f"{p}.noslip_iterations must be >= 0, got {self.noslip_iterations}")
-        if self.warp_contacts_per_env < 1 or self.warp_constraints_per_env < 1:
-            raise ConfigError(f"{p}.warp_contacts_per_env and warp_constraints_per_env must be >= 1")
+
+
+MAX_POLICY_DT_S = 0.1
+POLICY_DT_WHY = (
+    f"the policy period dt_s x decimation at most {MAX_POLICY_DT_S} s: slower control cannot keep the balance, "
+    "and a policy step's physics runs as one call that a signal cannot interrupt"
+)
+SIM_BOUNDS = {
+    "dt_s": Bound(
+        1e-4, 0.02, "the physics step, s: longer makes contacts unstable, shorter costs more than it resolves"
+    ),
+    "num_threads": Bound(0, 1024, "Batch worker threads, 0 = all cores; 1024 is more than any machine has"),
+    "solver_iterations": Bound(1, 1000, "MuJoCo's default is 100; each costs a pass over every constraint"),
+    "solver_tolerance": Bound(0, 1e-3, "above 1e-3 the solver stops before contacts converge", open_lo=True),
+    "impratio": Bound(
+        0, 100, "MuJoCo's friction-to-normal impedance ratio: useful values are 1 to tens", open_lo=True
+    ),
+    "noslip_iterations": Bound(
+        0, 100, "no-slip passes, 0 = off: 2 remove the creep, each costs a solver pass"
+    ),
+    "warp_contacts_per_env": Bound(1, 4096, "contact slots MuJoCo Warp preallocates per env on the GPU"),
+    "warp_constraints_per_env": Bound(
+        1, 65536, "constraint rows MuJoCo Warp preallocates per env on the GPU"
+    ),
+}
 
 
 @dataclass
@@ -127,8 +189,18 @@ class ControlCfg:
     action_clip: float = 100.0  # actions are clipped to +-action_clip before scaling (rsl_rl convention)
 
     def validate(self, p: str):
-        check_positive(f"{p}.action_scale", self.action_scale)
-        check_positive(f"{p}.action_clip", self.action_clip)
+        check_bounds(self, p, CONTROL_BOUNDS)
+
+
+CONTROL_BOUNDS = {
+    "action_scale": Bound(
+        0, 2, "rad of joint target per action unit: at 2 a unit action spans a joint's range", open_lo=True
+    ),
+    "action_clip": Bound(0, 1000, "action units: at 1000 it clips nothing a policy outputs", open_lo=True),
+}
+# the history estimators' two convolutions (lasmp/modules/estimator.py: kernels 6 and 4, strides 2 and 2)
+# need this many steps of history
+MIN_HISTORY_LENGTH = 12
 
 
 @dataclass
@@ -137,9 +209,17 @@ class ObservationsCfg:
     clip: float = 100.0  # every observation is clipped to +-clip (a NaN guard, not a normalizer)
 
     def validate(self, p: str):
-        if self.history_length < 1:
-            raise ConfigError(f"{p}.history_length must be >= 1, got {self.history_length}")
-        check_positive(f"{p}.clip", self.clip)
+        check_bounds(self, p, OBSERVATIONS_BOUNDS)
+
+
+OBSERVATIONS_BOUNDS = {
+    "history_length": Bound(
+        MIN_HISTORY_LENGTH,
+        500,
+        f"policy steps of o^H: the estimators' convolutions need {MIN_HISTORY_LENGTH}; 500 is 10 s at 50 Hz, an episode",
+    ),
+    "clip": Bound(0, 1e4, "a NaN and runaway guard: no observation comes near 1e4", open_lo=True),
+}
 
 
 @dataclass
@@ -157,13 +237,19 @@ class DomainRandRanges:
     platform_kd_factor: list[float] = field(default_factory=lambda: [0.02, 0.03])  # per axis
 
     def validate(self, p: str):
-        check_range(f"{p}.trunk_mass_kg", self.trunk_mass_kg, 0.5, 50.0)
-        check_range(f"{p}.com_shift_m", self.com_shift_m, -0.5, 0.5)
-        check_range(f"{p}.foot_friction", self.foot_friction, 0.0, 5.0)
-        check_range(f"{p}.joint_kp", self.joint_kp, 0.0, 500.0)
-        check_range(f"{p}.joint_kd", self.joint_kd, 0.0, 50.0)
-        check_range(f"{p}.platform_kp_factor", self.platform_kp_factor, 0.0, 100.0)
-        check_range(f"{p}.platform_kd_factor", self.platform_kd_factor, 0.0, 100.0)
+        for name, bound in DOMAIN_RAND_BOUNDS.items():
+            check_range(f"{p}.{name}", getattr(self, name), bound)
+
+
+DOMAIN_RAND_BOUNDS = {
+    "trunk_mass_kg": Bound(0.5, 50, "kg: ten times the A1's trunk, 4.7"),
+    "com_shift_m": Bound(-0.5, 0.5, "m per axis: beyond the trunk's half-length"),
+    "foot_friction": Bound(0, 5, "rubber on rubber is 1 to 2"),
+    "joint_kp": Bound(0, 500, "N m/rad: over ten times the A1's 40"),
+    "joint_kd": Bound(0, 50, "N m s/rad: fifty times the A1's 1"),
+    "platform_kp_factor": Bound(0, 100, "times the drive's stiffness"),
+    "platform_kd_factor": Bound(0, 100, "times the drive's damping at kd_factor_ref"),
+}
 
 
 def _test_ranges() -> DomainRandRanges:
@@ -203,15 +289,25 @@ class InitStateCfg:
     xy_offset_max_m: float = 0.0  # start uniformly in a disc of this radius around the centre (0: at it)
 
     def validate(self, p: str):
-        check_range(f"{p}.yaw_range_rad", self.yaw_range_rad, -math.pi, math.pi)
-        check_positive(f"{p}.foot_clearance_m", self.foot_clearance_m, allow_zero=True)
-        if self.foot_clearance_m > 0.05:
-            raise ConfigError(f"{p}.foot_clearance_m must be <= 0.05 m, got {self.foot_clearance_m}")
-        check_positive(f"{p}.xy_offset_max_m", self.xy_offset_max_m, allow_zero=True)
-        if self.xy_offset_max_m > 0.7:
-            raise ConfigError(
-                f"{p}.xy_offset_max_m must be <= 0.7 m (the robot must fit), got {self.xy_offset_max_m}"
-            )
+        check_range(f"{p}.yaw_range_rad", self.yaw_range_rad, Bound(-math.pi, math.pi, "rad: a full turn"))
+        check_bounds(self, p, INIT_STATE_BOUNDS)
+
+
+INIT_STATE_BOUNDS = {
+    "foot_clearance_m": Bound(
+        0, 0.05, "m above the surface: touching, never inside; higher, the robot drops"
+    ),
+    "xy_offset_max_m": Bound(0, 0.7, "m from the centre: the robot must fit on the platform"),
+}
+# a fault threshold of both tasks' termination
+MAX_JOINT_VEL = Bound(
+    0,
+    1000,
+    "rad/s: 1000 is 50 times the A1's motors' speed, a diverged state; tiny faults every step",
+    open_lo=True,
+)
+# a million envs: about 100 GiB at their ~100 KiB each (the memory check refuses fewer that do not fit)
+MAX_ENVS = 1 << 20
 
 
 @dataclass
@@ -228,8 +324,8 @@ class BaseEnvCfg:
     def validate(self, p: str = "env"):
         check_known_keys(self, p)
         check_finite_values(self, p)
-        if self.num_envs < 1:
-            raise ConfigError(f"{p}.num_envs must be >= 1, got {self.num_envs}")
+        Bound(1, MAX_ENVS, "a million envs take ~100 GiB").check(f"{p}.num_envs", self.num_envs, integer=True)
+        check_seed_key(f"{p}.seed", self.seed)
         if self.backend not in ("cpu", "warp"):
             raise ConfigError(f"{p}.backend must be 'cpu' or 'warp', got {self.backend!r}")
         for f in fields(self):

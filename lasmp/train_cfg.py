@@ -19,11 +19,26 @@ from omegaconf import OmegaConf
 
 from lasmp.algo.precision import PRECISIONS
 from lasmp.algo.symmetry import supports_mirror
-from lasmp.config import ConfigError, build_env_cfg, check_finite_values, check_known_keys
+from lasmp.config import (
+    Bound,
+    ConfigError,
+    build_env_cfg,
+    check_bounds,
+    check_finite_values,
+    check_known_keys,
+    check_seed_key,
+)
 from lasmp.envs import registry
 from lasmp.envs.registry import env_schema
-from lasmp.inputs import InputError, check_seed
 from lasmp.modules.obs_groups import EXPLICIT_SELECTIONS
+from lasmp.train_bounds import (
+    ALGO_BOUNDS,
+    LOSS_WEIGHT,
+    MAX_LAYERS,
+    POLICY_BOUNDS,
+    RUNNER_BOUNDS,
+    THREADS,
+)
 
 ACTOR_CLASS = "lasmp.modules.policy:LasmpActor"
 CRITIC_CLASS = "rsl_rl.models:MLPModel"
@@ -65,8 +80,14 @@ class PolicyCfg:
             raise ConfigError(
                 f"{p}.use_alignment needs {p}.explicit=all (the command is built from platform estimates)"
             )
-        if self.latent_dim < 1 or self.init_noise_std <= 0:
-            raise ConfigError(f"{p}.latent_dim must be >= 1 and {p}.init_noise_std > 0")
+        for name in ("actor_hidden_dims", "critic_hidden_dims", "encoder_hidden_dims"):
+            dims = getattr(self, name)
+            if not 1 <= len(dims) <= MAX_LAYERS:
+                raise ConfigError(
+                    f"{p}.{name} must list 1 to {MAX_LAYERS} hidden layer widths (rsl_rl's MLP needs one), "
+                    f"got {list(dims)}"
+                )
+        check_bounds(self, p, POLICY_BOUNDS)
 
 
 @dataclass
@@ -83,10 +104,9 @@ class SymmetryCfg:
         return self.use_data_augmentation or self.use_mirror_loss
 
     def validate(self, p: str) -> None:
-        if self.mirror_loss_coeff < 0 or (self.use_mirror_loss and self.mirror_loss_coeff == 0):
-            raise ConfigError(
-                f"{p}.mirror_loss_coeff must be >= 0, and > 0 with use_mirror_loss; got {self.mirror_loss_coeff}"
-            )
+        LOSS_WEIGHT.check(f"{p}.mirror_loss_coeff", self.mirror_loss_coeff)
+        if self.use_mirror_loss and self.mirror_loss_coeff == 0:
+            raise ConfigError(f"{p}.mirror_loss_coeff must be > 0 with use_mirror_loss, got 0")
 
 
 @dataclass
@@ -141,36 +161,12 @@ class AlgoCfg:
     bootstrap_time_outs: bool = True
 
     def validate(self, p: str = "algo") -> None:
-        for name in ("learning_rate", "clip_param", "estimator_learning_rate", "max_grad_norm"):
-            if getattr(self, name) <= 0:
-                raise ConfigError(f"{p}.{name} must be > 0, got {getattr(self, name)}")
-        if not 0 < self.gamma <= 1 or not 0 <= self.lam <= 1:
-            raise ConfigError(
-                f"{p}.gamma must be in (0, 1] and {p}.lam in [0, 1], got {self.gamma}, {self.lam}"
-            )
-        if self.roa_lambda < 0:
-            raise ConfigError(f"{p}.roa_lambda must be >= 0, got {self.roa_lambda}")
-        for name in ("num_learning_epochs", "num_mini_batches", "estimator_epochs"):
-            if getattr(self, name) < 1:
-                raise ConfigError(f"{p}.{name} must be >= 1, got {getattr(self, name)}")
-        if self.entropy_coef < 0 or self.entropy_decay_iterations < 0:
-            raise ConfigError(
-                f"{p}.entropy_coef and {p}.entropy_decay_iterations must be >= 0, got {self.entropy_coef}, "
-                f"{self.entropy_decay_iterations}"
-            )
-        if self.estimate_rollout_every < 0 or self.estimate_rollout_start < 0:
-            raise ConfigError(
-                f"{p}.estimate_rollout_every and {p}.estimate_rollout_start must be >= 0, got "
-                f"{self.estimate_rollout_every}, {self.estimate_rollout_start}"
-            )
+        check_bounds(self, p, ALGO_BOUNDS)
         self.symmetry_cfg.validate(f"{p}.symmetry_cfg")
         if self.precision not in PRECISIONS:
             raise ConfigError(
                 f"{p}.precision must be one of {' | '.join(PRECISIONS)}, got {self.precision!r}"
             )
-
-
-MAX_VALIDATION_EPISODES = 2_000  # the validation benchmark's size (lasmp.eval.benchmark.VALIDATION)
 
 
 @dataclass
@@ -201,26 +197,7 @@ class RunnerCfg:
     validation_episodes: int = 256
 
     def validate(self, p: str = "runner") -> None:
-        if self.num_steps_per_env < 1 or self.max_iterations < 0 or self.save_interval < 1:
-            raise ConfigError(
-                f"{p}.num_steps_per_env and {p}.save_interval must be >= 1, max_iterations >= 0"
-            )
-        if type(self.keep_full) is not int or self.keep_full < 1:
-            raise ConfigError(f"{p}.keep_full must be an integer >= 1, got {self.keep_full!r}")
-        if type(self.validation_interval) is not int or self.validation_interval < 0:
-            raise ConfigError(
-                f"{p}.validation_interval must be an integer >= 0 (0: no validation), got {self.validation_interval!r}"
-            )
-        if (
-            type(self.validation_episodes) is not int
-            or not 1 <= self.validation_episodes <= MAX_VALIDATION_EPISODES
-        ):
-            raise ConfigError(
-                f"{p}.validation_episodes must be an integer in [1, {MAX_VALIDATION_EPISODES}] (the validation "
-                f"benchmark's episodes), got {self.validation_episodes!r}"
-            )
-        if not 0 <= self.max_fault_fraction <= 1:
-            raise ConfigError(f"{p}.max_fault_fraction must be in [0, 1], got {self.max_fault_fraction}")
+        check_bounds(self, p, RUNNER_BOUNDS)
         validate_logger(self)
 
 
@@ -260,10 +237,8 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
         raise ConfigError("env must be built with its task's schema (lasmp.train_cfg.to_train_cfg does it)")
     check_known_keys(cfg)  # a `+key=value` typo (Hydra appends it) or a misspelt attribute set in code
     check_finite_values(cfg)  # NaN passes a range check written as a comparison
-    try:  # one rule for every seed (lasmp.inputs): -1 or 2**64 would fail deep in numpy or torch
-        check_seed(cfg.seed, "seed")
-    except InputError as err:
-        raise ConfigError(str(err)) from None
+    check_seed_key("seed", cfg.seed)  # one rule for every seed: -1 or 2**64 would fail deep in numpy or torch
+    THREADS.check("torch_threads", cfg.torch_threads, integer=True)
     schema = env_schema(cfg.task)
     if type(cfg.env) is not schema:
         raise ConfigError(
@@ -274,16 +249,34 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
     cfg.policy.validate()
     cfg.algo.validate()
     cfg.runner.validate()
+    check_policy_fits_task(cfg)
     a, r = cfg.algo, cfg.runner
     if a.symmetry_cfg.enabled and not supports_mirror(registry.env_class(cfg.task)):
         raise ConfigError(f"algo.symmetry_cfg: task={cfg.task} has no mirror maps (moving_platform has)")
-    if cfg.env.num_envs * r.num_steps_per_env < a.num_mini_batches:
-        raise ConfigError(
-            f"env.num_envs * runner.num_steps_per_env ({cfg.env.num_envs * r.num_steps_per_env}) must be at least "
-            f"algo.num_mini_batches ({a.num_mini_batches})"
-        )
+    samples = cfg.env.num_envs * r.num_steps_per_env  # each mini-batch holds at least one
+    why = f"env.num_envs x runner.num_steps_per_env = {samples} samples"
+    Bound(1, samples, why).check("algo.num_mini_batches", a.num_mini_batches, integer=True)
     if cfg.device != "cpu" and not cfg.device.startswith("cuda"):
         raise ConfigError(f"device must be cpu or cuda[:N], got {cfg.device!r}")
+
+
+# the observation group an actor reads only when a policy key says so, and that key
+GROUP_KEYS = {"alignment": "policy.use_alignment", "command": "policy.command_input"}
+
+
+def check_policy_fits_task(cfg: TrainCfg) -> None:
+    """Refuse a policy whose actor reads an observation group the task's env does not hand out (the
+    moving platform's alignment command under task=rough_static), naming both: rsl_rl would fail
+    later, building the actor, with a traceback."""
+    given = registry.env_class(cfg.task).OBS_GROUPS
+    missing = [g for g in actor_groups(cfg) if g not in given]
+    if missing:
+        keys = [GROUP_KEYS[g] for g in missing if g in GROUP_KEYS]
+        raise ConfigError(
+            f"policy={cfg.policy.name} does not fit task={cfg.task}: its actor reads the observation group(s) "
+            f"{missing} ({', '.join(f'{k}=true' for k in keys)}), which the {cfg.task} env does not give (it gives "
+            f"{list(given)}); pick a policy made for the task, or switch {' and '.join(keys)} off"
+        )
 
 
 def validate_logger(r: RunnerCfg) -> None:

@@ -1,4 +1,5 @@
-"""What a training needs to fit before anything is built or written: memory for its envs, disk for its
+"""What a training needs to fit before anything is built or written: memory for its envs, rollouts and
+networks (every size setting, against every memory limit: `lasmp.memory`), disk for its
 first checkpoints. Why up front: allocating 100,000 envs takes minutes before it fails, and a disk too
 small fails at the first save, after the first iterations."""
 
@@ -6,7 +7,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import os
 import shutil
 from pathlib import Path
 
@@ -14,44 +14,24 @@ from lasmp.algo.runner import LasmpRunner
 from lasmp.config import ConfigError
 from lasmp.envs import registry
 from lasmp.inputs import size_in_words
+from lasmp.memory import available_memory
 from lasmp.rundir import RunDirError
 from lasmp.train_cfg import TrainCfg
 
-# no env needs more than this (a probe env measures the real figure only where this bound does not fit)
-ENV_BYTES_BOUND = 1 << 20
-FLOAT_BYTES = 4  # the rollout storage and the observations are float32
-
-
-def available_memory() -> tuple[int, str] | None:
-    """The memory a new allocation can get, in bytes, and where the figure comes from: the kernel's
-    MemAvailable (/proc/meminfo), lowered to a cgroup's limit less its usage where one is set (a
-    container); None where neither can be read."""
-    found = None
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    found = (int(line.split()[1]) * 1024, "MemAvailable in /proc/meminfo")
-    except (OSError, ValueError):
-        with contextlib.suppress(ValueError, OSError, AttributeError):
-            found = (os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"), "free physical pages")
-    with contextlib.suppress(OSError, ValueError):
-        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
-        if limit != "max":
-            left = int(limit) - int(Path("/sys/fs/cgroup/memory.current").read_text())
-            if found is None or left < found[0]:
-                found = (max(left, 0), "this cgroup's memory.max less its memory.current")
-    return found
+FLOAT_BYTES = 4  # the rollout storage, the observations and the networks are float32
+# a network's parameter is held four times over while learning: the weights, their gradient, Adam's two moments
+PARAM_COPIES = 4
 
 
 def env_bytes(cfg: TrainCfg) -> dict[str, int]:
     """A lower bound of the memory one env of `cfg` takes, in bytes by part, measured on a
     probe env of one: its MuJoCo data's buffer (MjData.nbuffer: state, positions, velocities,
     contacts' space; the arena MuJoCo reserves on top is not counted, as it is touched only as needed),
-    its observation (every group, float32), and its share of the rollout storage the learner keeps
+    its observation (every group, float32; env.observations.history_length sets the history's), the two
+    spare history buffers the env writes in turn, and its share of the rollout storage the learner keeps
     (runner.num_steps_per_env steps of that observation, the actions' sample, mean and std, and six
-    scalars: reward, done, value, log-probability, return, advantage). The learner's update copies
-    and the networks are left out: the bound only refuses what cannot fit."""
+    scalars: reward, done, value, log-probability, return, advantage). The learner's update copies are
+    left out: the bound only refuses what cannot fit."""
     one = dataclasses.replace(cfg.env, num_envs=1)
     probe = registry.make_env(cfg.task, one, cfg.device)
     try:
@@ -61,6 +41,7 @@ def env_bytes(cfg: TrainCfg) -> dict[str, int]:
             physics = int(batch.get_data(0).nbuffer)
         obs = probe.get_observations()
         obs_floats = sum(v[0].numel() for v in obs.values())
+        spares = sum(b[0].numel() for b in getattr(probe, "_history_spares", ()))
         step_floats = obs_floats + 3 * probe.num_actions + 6
     finally:
         with contextlib.suppress(Exception):
@@ -68,32 +49,89 @@ def env_bytes(cfg: TrainCfg) -> dict[str, int]:
     return {
         "physics": physics,
         "observation": obs_floats * FLOAT_BYTES,
+        "history buffers": spares * FLOAT_BYTES,
         "rollout storage": cfg.runner.num_steps_per_env * step_floats * FLOAT_BYTES,
     }
 
 
-def check_memory(cfg: TrainCfg, processes: int = 1) -> None:
-    """Refuse an env.num_envs whose envs cannot fit in memory before any env is built, with the
-    estimate (`env_bytes`, a lower bound) and how it was computed: allocating them would take minutes
-    before failing. `processes`: this machine's ranks of a torchrun job, each with its own envs. The
-    cpu backend only (warp's envs live on the GPU)."""
+def network_bytes(cfg: TrainCfg) -> int:
+    """A lower bound of the learner's networks, in bytes: the actor's, the critic's and the implicit
+    encoder's hidden-to-hidden layers (their inputs and outputs, and the estimators, left out), each
+    parameter held PARAM_COPIES times."""
+    p = cfg.policy
+    params = sum(
+        a * b + b
+        for dims in (p.actor_hidden_dims, p.critic_hidden_dims, p.encoder_hidden_dims)
+        for a, b in zip(dims, dims[1:], strict=False)
+    )
+    return params * PARAM_COPIES * FLOAT_BYTES
+
+
+@dataclasses.dataclass
+class MemoryNeed:
+    """A lower bound of what a training takes on this machine, in bytes, by what it scales with."""
+
+    per_env: dict[str, int]  # one env's parts (`env_bytes`)
+    envs: int  # every env of every process
+    networks: int  # every process's networks (`network_bytes`)
+    validation: int  # rank 0's validation env (lasmp.train.make_validator: moving_platform, interval > 0)
+
+    @property
+    def total(self) -> int:
+        return self.envs + self.networks + self.validation
+
+
+def memory_need(cfg: TrainCfg, processes: int = 1) -> MemoryNeed:
+    """What a training of `cfg` takes at least: every size setting counts (env.num_envs,
+    runner.num_steps_per_env, the observation history, the networks' widths, the validation env's
+    runner.validation_episodes). `processes`: the machine's ranks, each with its own envs and networks."""
+    per_env = env_bytes(cfg)
+    one = sum(per_env.values())
+    validating = cfg.runner.validation_interval > 0 and cfg.task == "moving_platform"
+    played = one - per_env["rollout storage"]  # the validation env keeps no rollout
+    return MemoryNeed(
+        per_env=per_env,
+        envs=processes * cfg.env.num_envs * one,
+        networks=processes * network_bytes(cfg),
+        validation=cfg.runner.validation_episodes * played if validating else 0,
+    )
+
+
+def check_memory(cfg: TrainCfg, processes: int = 1, *, available: tuple[int, str] | None = None) -> None:
+    """Refuse a training whose envs, rollout storage and networks cannot fit in memory before any env
+    is built, with the estimate (`memory_need`, a lower bound) and the limit it meets
+    (`lasmp.memory.available_memory`, or `available` where given): allocating them would take minutes
+    before failing. `processes`: this machine's ranks of a torchrun job. The cpu backend only (warp's
+    envs live on the GPU)."""
     if getattr(cfg.env, "backend", "cpu") != "cpu":
         return
-    found = available_memory()
-    envs = cfg.env.num_envs * processes
-    if found is None or envs * ENV_BYTES_BOUND <= found[0]:
-        return  # certainly fits (or nothing to compare with): no probe env
-    available, source = found
-    measured = env_bytes(cfg)
-    per_env = sum(measured.values())
-    parts = ", ".join(f"{name} {size_in_words(n)}" for name, n in measured.items())
-    if envs * per_env <= available:
+    found = available or available_memory()
+    if found is None:
+        return  # nothing to compare with
+    need = memory_need(cfg, processes)
+    left, source = found
+    if need.total <= left:
         return
+    one = sum(need.per_env.values())
+    terms = [f"{size_in_words(need.envs)} for the envs"]
+    terms += [
+        f"{size_in_words(n)} for the {k}"
+        for k, n in (("networks", need.networks), ("validation", need.validation))
+        if n
+    ]
+    parts = ", ".join(f"{name} {size_in_words(n)}" for name, n in need.per_env.items())
+    fits = (left - need.networks - need.validation) // (processes * one)
+    advice = (
+        f"Give env.num_envs={fits:,} or fewer"
+        if fits >= 1
+        else "The networks and the validation env alone do not fit: give smaller policy.*_hidden_dims or "
+        "runner.validation_episodes"
+    )
     ranks = f" x {processes} processes" if processes > 1 else ""
     raise ConfigError(
-        f"env.num_envs={cfg.env.num_envs}{ranks} cannot fit in memory: it needs at least {size_in_words(envs * per_env)} "
-        f"({size_in_words(per_env)} per env: {parts}; measured on one env), and {size_in_words(available)} is available "
-        f"({source}). Give env.num_envs={max(available // (per_env * processes), 1):,} or fewer"
+        f"env.num_envs={cfg.env.num_envs}{ranks} cannot fit in memory: this training needs at least "
+        f"{size_in_words(need.total)} ({' + '.join(terms)}; {size_in_words(one)} per env: {parts}; measured on "
+        f"one env), and {size_in_words(left)} is available ({source}). {advice}"
     )
 
 

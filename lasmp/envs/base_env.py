@@ -43,6 +43,7 @@ from lasmp.robots import a1
 
 class BaseEnv(VecEnv):
     cfg_class: type[BaseEnvCfg] = BaseEnvCfg  # the task's env config schema
+    OBS_GROUPS: tuple[str, ...] = ()  # the observation groups the task's env hands out
 
     @classmethod
     def check_cfg(cls, cfg) -> None:

@@ -12,13 +12,12 @@ registered terms: both tasks' reward configs and the manager call it.
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import torch
 
-from lasmp.config import ConfigError
+from lasmp.config import Bound, ConfigError
 
 RewardFn = Callable[[Any, Any], torch.Tensor]  # (a task's step state, its rewards config) -> (n,)
 
@@ -40,13 +39,17 @@ def make_registry() -> tuple[dict[str, RewardFn], Callable]:
 
 def check_reward_weights(weights: Mapping[str, float], terms: Mapping[str, RewardFn], where: str) -> None:
     """Refuse a weight for a term that is not registered in `terms` (listing the valid names) or a
-    non-finite weight; `where` names the weights in the message (e.g. `env.rewards.weights`)."""
+    weight outside `WEIGHT`; `where` names the weights in the message (e.g. `env.rewards.weights`)."""
     unknown = sorted(set(weights) - set(terms))
     if unknown:
         raise ConfigError(f"{where}: unknown reward term(s) {unknown}; valid terms: {sorted(terms)}")
     for name, weight in weights.items():
-        if not math.isfinite(float(weight)):
-            raise ConfigError(f"{where}.{name} must be finite, got {weight}")
+        WEIGHT.check(f"{where}.{name}", weight)
+
+
+# a term's weight: rsl_rl's PPO (its value loss, its clip) expects rewards of order 1 per step; at 1000 a
+# single term swamps every other and the value function's error swamps the policy gradient
+WEIGHT = Bound(-1000, 1000, "per step, before dt_s: rewards of order 1 keep PPO's value loss in scale")
 
 
 def squared_norm(x: torch.Tensor) -> torch.Tensor:

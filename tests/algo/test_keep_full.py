@@ -112,7 +112,9 @@ def test_play_and_evaluate_take_a_converted_policy_checkpoint_and_a_run_director
 
 @pytest.mark.parametrize("value", [0, -1])
 def test_keep_full_below_one_is_refused_naming_the_key(tmp_path, value):
-    with pytest.raises(ConfigError, match=rf"runner\.keep_full must be an integer >= 1, got {value}"):
+    with pytest.raises(
+        ConfigError, match=rf"runner\.keep_full must be an integer in \[1, 1000\] .*, got {value}"
+    ):
         tiny(tmp_path, runner={"keep_full": value})
 
 

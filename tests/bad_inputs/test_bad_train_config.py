@@ -94,12 +94,11 @@ def test_cuda_without_a_cuda_device_fails_at_start_up_naming_it(tmp_path):
 
 
 def test_an_env_count_that_cannot_fit_in_memory_is_refused_up_front_with_its_estimate(tmp_path):
-    """T02: a billion envs; refused in seconds, before any of them is allocated, with the estimate."""
+    """T02: a million envs of 1,000-step rollouts (terabytes); refused in seconds, before any of them is
+    allocated, with the estimate. (A billion is refused by env.num_envs's range: test_bad_setting_ranges.)"""
     run = tmp_path / "run"
-    out = train(tiny("env.num_envs=1000000000", f"runner.log_dir={run}"))
-    refused(
-        out, r"env\.num_envs=1000000000 cannot fit in memory", r"needs at least \d", "per env", "available"
-    )
+    out = train(tiny("env.num_envs=1000000", "runner.num_steps_per_env=1000", f"runner.log_dir={run}"))
+    refused(out, r"env\.num_envs=1000000 cannot fit in memory", r"needs at least \d", "per env", "available")
     assert not run.exists()
 
 
@@ -107,16 +106,18 @@ MEASURE_ENV_GROWTH = """
 import dataclasses, json, os, sys
 from hydra import compose, initialize_config_dir
 from lasmp.train import make_env
-from lasmp.train_cfg import to_train_cfg
+from lasmp.train_cfg import register_configs, to_train_cfg
 from lasmp.train_resources import env_bytes
 
 def resident():
     return int(open("/proc/self/statm").read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 root, overrides = sys.argv[1], json.loads(sys.argv[2])
+register_configs()  # the schemas cfg/config.yaml composes (train.py registers them at its start)
 with initialize_config_dir(config_dir=root + "/cfg", version_base="1.3"):
     cfg = to_train_cfg(compose("config", overrides=overrides))
-make_env(dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, num_envs=1))).close()  # imports, warm-up
+warm = make_env(dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, num_envs=1)))  # imports, warm-up
+del warm
 before = resident()
 env = make_env(dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, num_envs=257)))
 grown = (resident() - before) / 256

@@ -168,7 +168,7 @@ def test_train_cli_validates_keeps_the_best_policy_and_its_curve(tmp_path):
 @pytest.mark.parametrize(
     "key, value, message",
     [
-        ("validation_interval", -1, "runner.validation_interval must be an integer >= 0"),
+        ("validation_interval", -1, r"runner.validation_interval must be an integer in \[0, 1000000\]"),
         ("validation_episodes", 0, r"runner.validation_episodes must be an integer in \[1, 2000\]"),
         ("validation_episodes", 2_001, r"runner.validation_episodes must be an integer in \[1, 2000\]"),
     ],

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from lasmp.config import BaseEnvCfg, ConfigError, check_positive
+from lasmp.config import MAX_JOINT_VEL, BaseEnvCfg, Bound, ConfigError, check_bounds
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.rewards import RewardsCfg
 
@@ -39,10 +39,25 @@ class PlatformCfg:
     velocity_feedforward: bool = False
 
     def validate(self, p: str):
-        if len(self.size_m) != 3 or min(self.size_m) <= 0:
-            raise ConfigError(f"{p}.size_m must be three positive lengths, got {list(self.size_m)}")
-        for name in ("mass_kg", "friction", "omega_n_rad_s", "damping_ratio", "kd_factor_ref"):
-            check_positive(f"{p}.{name}", getattr(self, name))
+        if len(self.size_m) != 3:
+            raise ConfigError(
+                f"{p}.size_m must be three lengths (width, length, height), got {list(self.size_m)}"
+            )
+        check_bounds(self, p, PLATFORM_BOUNDS)
+
+
+PLATFORM_BOUNDS = {
+    "size_m": Bound(0, 100, "m: up to a ship's deck", open_lo=True),
+    "mass_kg": Bound(0, 1e7, "kg: 1e5 already makes the robot's push negligible", open_lo=True),
+    "friction": Bound(
+        0, 5, "as the feet's (domain_rand foot_friction <= 5); rubber on rubber is 1 to 2", open_lo=True
+    ),
+    "omega_n_rad_s": Bound(
+        0, 100, "rad/s: stiffer, the drive rings faster than the physics step resolves", open_lo=True
+    ),
+    "damping_ratio": Bound(0, 10, "past 10 the drive is so overdamped it barely follows", open_lo=True),
+    "kd_factor_ref": Bound(0, 100, "as domain_rand's platform_kd_factor, within [0, 100]", open_lo=True),
+}
 
 
 @dataclass
@@ -62,9 +77,7 @@ class TrajectoryCfg:
     def validate(self, p: str):
         if self.split not in ("train", "test"):
             raise ConfigError(f"{p}.split must be 'train' or 'test', got {self.split!r}")
-        check_positive(f"{p}.duration_s", self.duration_s)
-        if not self.hold_s >= 0:
-            raise ConfigError(f"{p}.hold_s must be >= 0, got {self.hold_s}")
+        check_bounds(self, p, TRAJECTORY_BOUNDS)
         try:
             trj.SplineSpec(self.kind, self.degree)
         except ValueError as err:
@@ -73,6 +86,12 @@ class TrajectoryCfg:
     @property
     def spline(self) -> trj.SplineSpec:
         return trj.SplineSpec(self.kind, self.degree)
+
+
+TRAJECTORY_BOUNDS = {
+    "duration_s": Bound(0, 3600, "s: an episode of up to an hour", open_lo=True),
+    "hold_s": Bound(0, 3600, "s: a hold of up to an hour"),
+}
 
 
 @dataclass
@@ -85,18 +104,26 @@ class CurriculumCfg:
     replay_lower_fraction: float = 0.2  # (ours) share of episodes that replay mastered levels
 
     def validate(self, p: str):
-        if not 1 <= self.level_min <= self.level_max:
+        check_bounds(self, p, CURRICULUM_BOUNDS)
+        if self.level_min > self.level_max:
             raise ConfigError(
-                f"{p}: need 1 <= level_min <= level_max, got {self.level_min}, {self.level_max}"
+                f"{p}: need level_min <= level_max, got {p}.level_min={self.level_min}, "
+                f"{p}.level_max={self.level_max}"
             )
-        if not 0 < self.promote_success_rate <= 1:
-            raise ConfigError(f"{p}.promote_success_rate must be in (0, 1], got {self.promote_success_rate}")
-        if self.window_episodes < 1:
-            raise ConfigError(f"{p}.window_episodes must be >= 1, got {self.window_episodes}")
-        if not 0 <= self.replay_lower_fraction < 1:
-            raise ConfigError(
-                f"{p}.replay_lower_fraction must be in [0, 1), got {self.replay_lower_fraction}"
-            )
+
+
+LEVELS = Bound(1, 50, "waypoints N over the trajectory: at 50 in 10 s the platform turns every 0.2 s")
+CURRICULUM_BOUNDS = {
+    "level_min": LEVELS,
+    "level_max": LEVELS,
+    "promote_success_rate": Bound(0, 1, "a success rate", open_lo=True),
+    "window_episodes": Bound(
+        1, 1_000_000, "episodes the success rate is measured over: a window a run never fills never promotes"
+    ),
+    "replay_lower_fraction": Bound(
+        0, 1, "a share of episodes; at 1 the level would never be played", open_hi=True
+    ),
+}
 
 
 @dataclass
@@ -106,7 +133,18 @@ class TerminationCfg:
     max_joint_vel_rad_s: float = 200.0  # beyond this the simulation is considered diverged (a fault)
 
     def validate(self, p: str):
-        check_positive(f"{p}.max_joint_vel_rad_s", self.max_joint_vel_rad_s)
+        check_bounds(self, p, TERMINATION_BOUNDS)
+
+
+TERMINATION_BOUNDS = {
+    "fall_below_top_m": Bound(
+        -1, 0.5, "m above the top surface: the trunk stands 0.37 m up, higher every step is a fall"
+    ),
+    "footprint_margin_m": Bound(
+        -1, 10, "m beyond the 2 m platform's edge: -1 shrinks it to nothing, 10 m off it the robot has fallen"
+    ),
+    "max_joint_vel_rad_s": MAX_JOINT_VEL,
+}
 
 
 @dataclass

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from lasmp.config import ConfigError, check_positive
+from lasmp.config import Bound, ConfigError, check_bounds
 from lasmp.envs import rewards as shared
 from lasmp.envs.moving_platform.state import StepState
 from lasmp.robots.a1 import LEG_NAMES
@@ -250,9 +250,7 @@ class RewardsCfg:
             raise ConfigError(
                 f"{p}.air_time_charge must be one of {list(AIR_TIME_CHARGES)}, got {self.air_time_charge!r}"
             )
-        for f in dataclasses.fields(self):
-            if f.name not in ("weights", "h_des_from", "air_time_charge", "support_margin_at_height"):
-                check_positive(f"{p}.{f.name}", getattr(self, f.name))
+        check_bounds(self, p, REWARD_BOUNDS)
 
     def h_des_p_m(self, plf_top_m: float) -> float:
         """h_des in the platform frame (origin at its CoM), m: what rewards and metrics compare p_body_p,z to."""
@@ -261,3 +259,18 @@ class RewardsCfg:
     def in_platform_frame(self, plf_top_m: float) -> RewardsCfg:
         """The same config with h_des measured from the platform frame's origin: what the terms read."""
         return dataclasses.replace(self, h_des_m=self.h_des_p_m(plf_top_m), h_des_from="centre")
+
+
+# the shape parameters: each > 0 (a kernel's width, a tolerance), and no larger than what the robot or the
+# platform ever reaches, beyond which the term pays (or charges) the same for every state
+REWARD_BOUNDS = {
+    "sigma_center_m": Bound(0, 10, "m: five times the platform's width", open_lo=True),
+    "sigma_alignment": Bound(0, 10, "m/s and rad/s: far beyond any platform's speed", open_lo=True),
+    "sigma_level_rad": Bound(0, 3.15, "rad: a half turn", open_lo=True),
+    "sigma_height_m": Bound(0, 1, "m: more than the A1's legs reach", open_lo=True),
+    "h_des_m": Bound(0, 1, "m: the A1's legs reach 0.4 m", open_lo=True),
+    "f_tol_n": Bound(0, 1000, "N per foot: eight times the A1's weight", open_lo=True),
+    "t_swing_des_s": Bound(0, 10, "s: an episode", open_lo=True),
+    "t_contact_des_s": Bound(0, 10, "s: an episode", open_lo=True),
+    "support_margin_ref_m": Bound(0, 1, "m: the A1's support polygon is about 0.4 by 0.3 m", open_lo=True),
+}

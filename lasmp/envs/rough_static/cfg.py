@@ -11,7 +11,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from lasmp.config import BaseEnvCfg, ConfigError, check_positive, check_range
+from lasmp.config import (
+    MAX_JOINT_VEL,
+    BaseEnvCfg,
+    Bound,
+    ConfigError,
+    check_bounds,
+    check_range,
+    check_seed_key,
+)
 from lasmp.envs.rough_static.rewards import RewardsCfg
 
 
@@ -29,24 +37,38 @@ class TerrainCfg:
     spawn_margin_m: float = 2.0  # spawn points keep this far from the edges
 
     def validate(self, p: str):
+        check_bounds(self, p, TERRAIN_BOUNDS)
+        check_seed_key(f"{p}.seed", self.seed)
         if len(self.size_m) != 2 or min(self.size_m) <= 2 * self.spawn_margin_m:
             raise ConfigError(f"{p}.size_m must be two lengths > 2 * spawn_margin_m, got {list(self.size_m)}")
-        for name in ("resolution_m", "tile_m", "friction"):
-            check_positive(f"{p}.{name}", getattr(self, name))
-        if self.resolution_m > 0.5:
-            raise ConfigError(f"{p}.resolution_m must be <= 0.5 m, got {self.resolution_m}")
-        for name in ("roughness_m", "feature_height_m", "spawn_margin_m"):
-            check_positive(f"{p}.{name}", getattr(self, name), allow_zero=True)
-        if self.roughness_m > 0.2 or self.feature_height_m > 0.3:
+        cells = math.prod(round(x / self.resolution_m) + 1 for x in self.size_m)
+        if cells > MAX_TERRAIN_CELLS:
             raise ConfigError(
-                f"{p}: roughness_m <= 0.2 and feature_height_m <= 0.3 m, got "
-                f"{self.roughness_m}, {self.feature_height_m}"
+                f"{p}.size_m / {p}.resolution_m give a heightfield of {cells:,} cells; at most "
+                f"{MAX_TERRAIN_CELLS:,} (it is built and handed to MuJoCo cell by cell)"
             )
-        if self.smoothing_cells < 1:
-            raise ConfigError(f"{p}.smoothing_cells must be >= 1, got {self.smoothing_cells}")
         probs = [float(x) for x in self.tile_kind_probs]
         if len(probs) != 3 or min(probs) < 0 or not math.isclose(sum(probs), 1.0):
-            raise ConfigError(f"{p}.tile_kind_probs must be 3 probabilities summing to 1, got {probs}")
+            raise ConfigError(
+                f"{p}.tile_kind_probs must be 3 probabilities in [0, 1] summing to 1, got {probs}"
+            )
+
+
+TERRAIN_BOUNDS = {
+    "spawn_margin_m": Bound(0, 50, "m from the edges: half the largest terrain"),
+    "size_m": Bound(0, 200, "m: ten 20 s episodes' walk at 1 m/s", open_lo=True),
+    "resolution_m": Bound(
+        0.01, 0.5, "m: finer than 1 cm is below a foot's 2 cm radius, coarser than 0.5 m flattens every step"
+    ),
+    "roughness_m": Bound(0, 0.2, "m: more than half the A1's leg length is no ground it can walk"),
+    "feature_height_m": Bound(0, 0.3, "m: a step higher than 0.3 m is beyond the A1's legs"),
+    "smoothing_cells": Bound(
+        1, 100, "cells of the box filter: wider smooths the noise flat at any resolution"
+    ),
+    "tile_m": Bound(0, 200, "m: no wider than the terrain", open_lo=True),
+    "friction": Bound(0, 5, "as the feet's (domain_rand foot_friction <= 5)", open_lo=True),
+}
+MAX_TERRAIN_CELLS = 1 << 22  # 2048 x 2048
 
 
 @dataclass
@@ -58,14 +80,16 @@ class CommandsCfg:
     ang_vel_z_rad_s: list[float] = field(default_factory=lambda: [-1.0, 1.0])
 
     def validate(self, p: str):
-        check_positive(f"{p}.resample_s", self.resample_s)
-        if not 0.0 <= self.zero_command_fraction <= 1.0:
-            raise ConfigError(
-                f"{p}.zero_command_fraction must be in [0, 1], got {self.zero_command_fraction}"
-            )
-        check_range(f"{p}.lin_vel_x_mps", self.lin_vel_x_mps, -5.0, 5.0)
-        check_range(f"{p}.lin_vel_y_mps", self.lin_vel_y_mps, -5.0, 5.0)
-        check_range(f"{p}.ang_vel_z_rad_s", self.ang_vel_z_rad_s, -5.0, 5.0)
+        check_bounds(self, p, COMMANDS_BOUNDS)
+        for name in ("lin_vel_x_mps", "lin_vel_y_mps", "ang_vel_z_rad_s"):
+            check_range(f"{p}.{name}", getattr(self, name), COMMAND_RANGE)
+
+
+COMMAND_RANGE = Bound(-5, 5, "m/s and rad/s: beyond the A1's top speed of about 3 m/s")
+COMMANDS_BOUNDS = {
+    "resample_s": Bound(0, 3600, "s: up to an hour, the longest episode", open_lo=True),
+    "zero_command_fraction": Bound(0, 1, "a share of commands"),
+}
 
 
 @dataclass
@@ -75,10 +99,10 @@ class PushCfg:
     max_mps: float = 1.0  # |added horizontal trunk velocity| <= this
 
     def validate(self, p: str):
-        check_range(f"{p}.interval_s", self.interval_s, 0.0)
-        if self.interval_s[0] <= 0:
-            raise ConfigError(f"{p}.interval_s must be > 0, got {list(self.interval_s)}")
-        check_positive(f"{p}.max_mps", self.max_mps, allow_zero=True)
+        check_range(f"{p}.interval_s", self.interval_s, Bound(0, 3600, "s between pushes", open_lo=True))
+        Bound(0, 5, "m/s added to the trunk: 5 throws the A1 off its feet").check(
+            f"{p}.max_mps", self.max_mps
+        )
 
 
 @dataclass
@@ -87,8 +111,13 @@ class TerminationCfg:
     max_joint_vel_rad_s: float = 200.0  # beyond this the simulation is considered diverged (a fault)
 
     def validate(self, p: str):
-        check_positive(f"{p}.max_tilt_rad", self.max_tilt_rad)
-        check_positive(f"{p}.max_joint_vel_rad_s", self.max_joint_vel_rad_s)
+        check_bounds(self, p, TERMINATION_BOUNDS)
+
+
+TERMINATION_BOUNDS = {
+    "max_tilt_rad": Bound(0, 3.15, "rad of roll or pitch: a half turn", open_lo=True),
+    "max_joint_vel_rad_s": MAX_JOINT_VEL,
+}
 
 
 @dataclass
@@ -101,5 +130,7 @@ class RoughStaticCfg(BaseEnvCfg):
     termination: TerminationCfg = field(default_factory=TerminationCfg)
 
     def validate(self, p: str = "env"):
-        check_positive(f"{p}.episode_length_s", self.episode_length_s)
+        Bound(0, 3600, "s: an episode of up to an hour", open_lo=True).check(
+            f"{p}.episode_length_s", self.episode_length_s
+        )
         super().validate(p)

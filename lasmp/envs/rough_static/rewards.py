@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from lasmp.config import check_positive
+from lasmp.config import Bound, check_bounds
 from lasmp.envs import rewards as shared
 from lasmp.envs.rough_static.state import StepState
 
@@ -116,5 +116,10 @@ class RewardsCfg:
 
     def validate(self, p: str):
         shared.check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
-        check_positive(f"{p}.tracking_sigma", self.tracking_sigma)
-        check_positive(f"{p}.air_time_target_s", self.air_time_target_s, allow_zero=True)
+        check_bounds(self, p, REWARD_BOUNDS)
+
+
+REWARD_BOUNDS = {
+    "tracking_sigma": Bound(0, 25, "(m/s)^2 and (rad/s)^2: the commands span +-5", open_lo=True),
+    "air_time_target_s": Bound(0, 10, "s: half the default episode"),
+}

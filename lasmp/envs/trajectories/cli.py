@@ -21,7 +21,7 @@ import numpy as np
 
 from lasmp.atomic import atomic_open
 from lasmp.envs.trajectories.fileformat import load, save
-from lasmp.envs.trajectories.generate import ranges_for_split, sample
+from lasmp.envs.trajectories.generate import PROBE_ROWS, ranges_for_split, sample, sample_bytes
 from lasmp.envs.trajectories.splines import (
     DEFAULT_DEGREE,
     GENERATED_KINDS,
@@ -30,7 +30,8 @@ from lasmp.envs.trajectories.splines import (
     SplineSpec,
 )
 from lasmp.envs.trajectories.stats import print_table, statistics
-from lasmp.inputs import check_out_file, float_arg, int_arg, seed_arg
+from lasmp.inputs import InputError, check_out_file, float_arg, int_arg, seed_arg, size_in_words
+from lasmp.memory import available_memory
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 # what a sampled set is drawn with, and its defaults (--num's is per command): with --file, none applies
@@ -41,7 +42,24 @@ def _traj_from_args(args) -> PiecewisePoly:
     if getattr(args, "file", None):
         return load(args.file)
     spline = SplineSpec(args.kind, args.degree)
+    check_memory(args.num, ranges_for_split(args.split), spline)
     return sample(args.num, ranges_for_split(args.split), np.random.default_rng(args.seed), spline=spline)
+
+
+def check_memory(num: int, ranges, spline: SplineSpec) -> None:
+    """Refuse a --num whose trajectories cannot fit in memory, before sampling, with the estimate
+    (`sample_bytes`, a lower bound) and the limit it meets (`lasmp.memory.available_memory`): numpy would
+    otherwise fail (or the machine swap) only after allocating what it could."""
+    found = available_memory()
+    need, per_row = sample_bytes(num, ranges, spline)
+    if found is None or need <= found[0]:
+        return
+    left, source = found
+    raise InputError(
+        f"--num {num}: sampling {num:,} trajectories needs at least {size_in_words(need)} ({size_in_words(per_row)} "
+        f"per trajectory, measured on {PROBE_ROWS}), and {size_in_words(left)} is available ({source}). Give "
+        f"--num {max(left // per_row, 1):,} or fewer"
+    )
 
 
 def _plot(traj: PiecewisePoly, stats: dict, out: str, dt_s: float) -> None:

@@ -84,3 +84,16 @@ def sample(
     poses[pad] = np.nan
     kmax = n_max + 1 if n_waypoints is None else int(n.max(initial=0)) + 1
     return PiecewisePoly.from_knots(times[:, :kmax], poses[:, :kmax], n + 1, spline.code, spline.degree, n)
+
+
+PROBE_ROWS = 64
+
+
+def sample_bytes(num: int, ranges: TrajectoryRanges, spline: SplineSpec | None = None) -> tuple[int, int]:
+    """A lower bound of the memory :func:`sample` of ``num`` trajectories takes, in bytes, and its share
+    per trajectory: the waypoints it draws first (float64, the split's largest N) and the arrays of the
+    result, measured on a sample of PROBE_ROWS (its own generator: the caller's draws are untouched)."""
+    probe = sample(PROBE_ROWS, ranges, np.random.default_rng(0), spline=spline)
+    held = sum(a.nbytes for a in vars(probe).values() if isinstance(a, np.ndarray))
+    per_row = -(-held // PROBE_ROWS) + ranges.n_waypoints_max * 6 * 8
+    return num * per_row, per_row

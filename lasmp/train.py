@@ -151,7 +151,10 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
         try:
             if ranks.is_main:  # only now, with everything checked, the run directory's config
                 with atomic_open(log_dir / "config.yaml", "w") as f:
-                    f.write(config_header(first, last) + OmegaConf.to_yaml(to_plain(cfg)))
+                    f.write(
+                        config_header(first, last, "a warm start" if start else "a resume")
+                        + OmegaConf.to_yaml(to_plain(cfg))
+                    )
             processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
             span = f" ({first}\u2013{last})" if cfg.runner.max_iterations else ""
             say(
@@ -186,14 +189,14 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
     return runner
 
 
-def config_header(first: int, last: int) -> str:
+def config_header(first: int, last: int, how: str = "a resume") -> str:
     """config.yaml's first lines: which iterations the command that wrote it trained. Why: on a resume
     `runner.max_iterations` holds the iterations that command added (930 after 70), and read alone it
     looks like the run's length."""
     if first == 0:
         return ""
     return (
-        f"# written by a resume or a warm start: this command trained iterations {first}\u2013{last}, so the run holds "
+        f"# written by {how}: this command trained iterations {first}\u2013{last}, so the run holds "
         f"{last + 1} in all;\n# runner.max_iterations below counts the iterations it added, not the run's length\n"
     )
 

@@ -234,7 +234,7 @@ def test_the_env_option_must_be_the_tasks():
     "part, pattern",
     [
         (PolicyCfg(explicit="none"), "policy.use_alignment needs policy.explicit=all"),
-        (AlgoCfg(roa_lambda=-1.0), "algo.roa_lambda must be >= 0"),
+        (AlgoCfg(roa_lambda=-1.0), "algo.roa_lambda must be a number in [0, 100]"),
         (AlgoCfg(symmetry_cfg=SymmetryCfg(use_mirror_loss=True)), "algo.symmetry_cfg.mirror_loss_coeff"),
         (RunnerCfg(keep_full=0), "runner.keep_full"),
     ],
@@ -260,6 +260,7 @@ def test_a_saved_config_reads_back_to_the_same_train_cfg(task):
         "torch_threads",
         "resume",
         "resume_drop_env_state",
+        "warm_start",
         "env",
         "policy",
         "algo",

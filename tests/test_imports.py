@@ -13,16 +13,18 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lasmp"
 # from another package of its layer (the learner and the envs do not know each other)
 LAYERS = (
     ("lasmp.train", "lasmp.play", "lasmp.hydra_cli"),
+    ("lasmp.warm_start",),
     ("lasmp.resume", "lasmp.train_resources"),
     ("lasmp.eval", "lasmp.render"),
     ("lasmp.deploy", "lasmp.light_checkpoint"),
     ("lasmp.checkpoint_cfg",),
     ("lasmp.train_cfg", "lasmp.recipe"),
+    ("lasmp.train_bounds",),
     ("lasmp.motions",),
     ("lasmp.algo", "lasmp.envs"),
     ("lasmp.modules",),
-    ("lasmp.robots", "lasmp.config", "lasmp.plainstate", "lasmp.rundir"),
-    ("lasmp.atomic", "lasmp.inputs", "lasmp.ctrl_c"),
+    ("lasmp.robots", "lasmp.config", "lasmp.plainstate", "lasmp.rundir", "lasmp.memory"),
+    ("lasmp.atomic", "lasmp.inputs", "lasmp.ctrl_c", "lasmp.preflight"),
 )
 
 

@@ -66,7 +66,7 @@ def test_a_warm_started_run_trains_on_from_the_checkpoints_iteration_and_records
     assert runner.current_learning_iteration == 4  # the last iteration trained
     assert sorted(p.name for p in new.glob("model_*.pt")) == ["model_3.pt", "model_4.pt"]
     text = (new / "config.yaml").read_text()
-    assert text.startswith("# written by a resume or a warm start: this command trained iterations 3\u20134")
+    assert text.startswith("# written by a warm start: this command trained iterations 3\u20134")
     assert f"warm_start: {light}" in text
     # the new run resumes as any run, exactly: the warm start is not taken again
     resumed = train(tiny(new, runner={"max_iterations": 1}, resume=str(new)))

@@ -8,10 +8,12 @@ machine that trained: a run whose machine was lost has only what was committed, 
 (`policy_<N>.pt`) or its light form (actor only, `lasmp.light_checkpoint`). A warm start takes from it
 what it holds: the actor (MLP, normalizer, encoder, estimators), the critic where the file has one,
 the curriculum, the random streams, the validation curve and best score, and the iteration, so the
-estimate schedule and the curve go on where they were. It starts anew what the file lacks: the
-optimizers (Adam's moments, and the learning rate at algo.learning_rate, not the schedule's last
-value), the critic of a light file, and every env's episode. So it is not exact, and it says so;
-the run's config.yaml records `warm_start=`, and its resume command (after a stop) is a plain resume.
+estimate schedule and the curve go on where they were, and the learning rate the adaptive schedule
+had reached (a policy checkpoint keeps it: `learning_rates`). It starts anew what the file lacks:
+Adam's moments, the critic of a light file, and every env's episode. So it is not exact, and it says
+so; the run's config.yaml records `warm_start=`, and its resume command (after a stop) is a plain
+resume. Measured (docs/scaling.md): restarting at algo.learning_rate instead, 13 times the schedule's
+rate at iteration 550, undid a trained policy within 25 iterations; so did a new critic (a light file).
 
 The config is the checkpoint's, with the command's keys on top, as a resume's (`lasmp.resume`): a key
 a resume cannot change (task, seed, the networks) is refused the same way.
@@ -23,7 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from lasmp.algo.checkpoint import CheckpointError, check_finite, read_checkpoint
+from lasmp.algo.checkpoint import CheckpointError, check_finite, learning_rates, read_checkpoint
 from lasmp.config import ConfigError
 from lasmp.resume import insane_entry, resumed_cfg
 from lasmp.train_cfg import TrainCfg
@@ -74,13 +76,37 @@ class WarmStart:
             "env_run_state": False,
         }
         runner.load(self.data, load_cfg=keep)
+        rate = self._restore_learning_rates(runner)
         first = runner.current_learning_iteration
-        fresh = "the optimizers" + ("" if self.has_critic else " and the critic (the file holds none)")
+        fresh = "the optimizers' moments" + (
+            ""
+            if self.has_critic
+            else " and the critic (the file holds none: a new critic's first advantages undo a trained "
+            "policy for dozens of iterations, docs/scaling.md; warm-start from a policy checkpoint)"
+        )
         say(
             f"warm start from {self.data['path']} at iteration {first}: its actor"
             + (", critic" if self.has_critic else "")
-            + f", curriculum and validation curve; {fresh} start anew, the learning rate at "
-            f"{self.cfg.algo.learning_rate}, and every env's episode; {self.cfg.runner.max_iterations} "
-            f"iterations, to {first + self.cfg.runner.max_iterations - 1}",
+            + f", curriculum and validation curve; {fresh} start anew, and every env's episode; {rate}; "
+            f"{self.cfg.runner.max_iterations} iterations, to {first + self.cfg.runner.max_iterations - 1}",
             flush=True,
+        )
+
+    def _restore_learning_rates(self, runner: LasmpRunner) -> str:
+        """Set each optimizer's learning rate to the one the file kept (the adaptive schedule's last);
+        say which rate the run goes on at."""
+        rates = learning_rates(self.data)
+        for name, saved in rates.items():
+            optimizer = getattr(runner.alg, name, None)
+            if optimizer is None:
+                continue
+            for group in optimizer.param_groups:
+                group["lr"] = saved["lr"]
+            if name == "optimizer":
+                runner.alg.learning_rate = saved["lr"]
+        if "optimizer" in rates:
+            return f"the learning rate goes on at the file's {rates['optimizer']['lr']:.4g}"
+        return (
+            f"the file keeps no learning rate (written before they were kept): it restarts at algo.learning_rate="
+            f"{self.cfg.algo.learning_rate}, which can undo a trained policy in its first iterations"
         )

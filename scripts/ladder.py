@@ -6,7 +6,7 @@ run before the ladder used them), the same seeds on every rung so that rungs com
     python scripts/ladder.py train RUNG SEED      # train it (a stopped run resumes from its last save;
                                                   # one whose machine was lost, from its snapshot: a warm start)
     python scripts/ladder.py collect RUNG SEED    # its curve, config, commands and light policies -> results/ladder/
-    python scripts/ladder.py snapshot RUNG SEED   # a run still training: its newest policy (light), curve, commands
+    python scripts/ladder.py snapshot RUNG SEED   # a run still training: its newest policy checkpoint, curve, commands
     python scripts/ladder.py table [--json]       # the table, from results/ladder/<rung>/seed<k>/validation.json
     python scripts/ladder.py figure [--out docs/figures/scaling.png]
 

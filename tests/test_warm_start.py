@@ -18,9 +18,10 @@ from lasmp.warm_start import WarmStart
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    """A tiny run of 3 iterations (saved at each) and its last checkpoint's policy and light forms."""
+    """A tiny run of 3 iterations (saved at each) and its last checkpoint's policy and light forms; a
+    tiny KL target, so that the adaptive schedule surely moves the learning rate."""
     root = tmp_path_factory.mktemp("warm")
-    train(tiny(root / "run", runner={"max_iterations": 3}))
+    train(tiny(root / "run", runner={"max_iterations": 3}, algo={"desired_kl": 1e-6}))
     policy = policy_checkpoint(root / "run" / "model_2.pt", root / "policy_2.pt")
     light = write_light(policy, root / "light_2.pt")
     return root, policy, light
@@ -50,9 +51,16 @@ def test_a_warm_start_takes_the_weights_curriculum_and_iteration_and_starts_the_
         assert _same(runner.alg.critic.state_dict(), data["critic_state_dict"])
     else:  # the light file holds no critic: the new run's own, untouched
         assert _same(runner.alg.critic.state_dict(), untrained_critic)
-        assert "the critic (the file holds none)" in said[0]
+        assert "the critic (the file holds none: a new critic" in said[0]
     assert not runner.alg.optimizer.state_dict()["state"]  # Adam's moments start anew
-    assert runner.alg.optimizer.param_groups[0]["lr"] == cfg.algo.learning_rate
+    # the learning rate goes on at the schedule's, which the file kept (the full checkpoint's own)
+    full = read_checkpoint(root / "run" / "model_2.pt")
+    saved_lr = full["optimizer_state_dict"]["param_groups"][0]["lr"]
+    assert saved_lr != pytest.approx(cfg.algo.learning_rate)  # the schedule moved it
+    assert data["learning_rates"]["optimizer"]["lr"] == saved_lr
+    assert runner.alg.learning_rate == saved_lr
+    assert all(g["lr"] == saved_lr for g in runner.alg.optimizer.param_groups)
+    assert f"goes on at the file's {saved_lr:.4g}" in said[0]
     assert runner.env.state_dict(run=False) == data["env_state"]  # the curriculum: the checkpoint's
     assert "warm start from" in said[0] and "at iteration 3" in said[0]
 
@@ -84,6 +92,22 @@ def test_a_warm_start_is_refused_before_anything_is_written_where_it_cannot_go_a
     with pytest.raises(RunDirError, match="already holds a run"):
         train(tiny(root / "run", warm_start=str(policy)))
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_a_file_written_before_learning_rates_were_kept_restarts_at_the_configs_and_says_so(
+    trained, tmp_path
+):
+    _, policy, _ = trained
+    data = torch.load(policy, weights_only=True)
+    del data["learning_rates"]
+    old = tmp_path / "policy_2.pt"
+    torch.save(data, old)
+    start = WarmStart.check(tiny(tmp_path / "new", warm_start=str(old)), explicit=None)
+    runner = make_runner(start.cfg, str(tmp_path / "new"))
+    said = []
+    start.restore(runner, lambda *a, **k: said.append(a[0]))
+    assert runner.alg.optimizer.param_groups[0]["lr"] == start.cfg.algo.learning_rate
+    assert "keeps no learning rate" in said[0]
 
 
 def test_a_warm_start_from_a_checkpoint_with_a_non_finite_weight_is_refused_naming_the_entry(

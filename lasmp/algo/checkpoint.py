@@ -280,11 +280,30 @@ def is_policy_only(data: dict) -> bool:
 
 def policy_only(data: dict, source: str) -> dict:
     """A policy checkpoint's content from a checkpoint's `data`: without the optimizers' states and the
-    envs' running state (the task's state, such as the curriculum, stays); `source` says where from."""
+    envs' running state (the task's state, such as the curriculum, stays); `source` says where from.
+    The learning rate each optimizer had reached stays (`learning_rates`, a few bytes): a warm start
+    from the file goes on at it. Why: the adaptive schedule lowers it (7.6e-5 at iteration 550 of a
+    default run), and restarting at algo.learning_rate (1e-3) with fresh Adam moments undoes the policy
+    (docs/scaling.md, the warm start's shock)."""
     slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
     slim["env_state"] = {k: v for k, v in (data.get("env_state") or {}).items() if k != "run"}
+    rates = learning_rates(data)
+    if rates:
+        slim["learning_rates"] = rates
     slim.update(kind="policy", source=source)
     return slim
+
+
+def learning_rates(data: dict) -> dict[str, dict[str, float]]:
+    """{optimizer: {"lr": its first group's learning rate}} of a checkpoint's `data`: read off its
+    optimizers' states (a full checkpoint) or the `learning_rates` a policy checkpoint kept."""
+    if "learning_rates" in data:
+        return dict(data["learning_rates"])
+    return {
+        key.removesuffix("_state_dict"): {"lr": float(data[key]["param_groups"][0]["lr"])}
+        for key in OPTIMIZER_KEYS
+        if isinstance(data.get(key), dict) and data[key].get("param_groups")
+    }
 
 
 def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False) -> Path:

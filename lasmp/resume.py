@@ -33,7 +33,8 @@ from lasmp.algo.checkpoint import (
 )
 from lasmp.checkpoint_cfg import rebuilding
 from lasmp.envs.trajectories.splines import PADDING
-from lasmp.rundir import RunDirError, describe, run_files
+from lasmp.rundir import CHECKPOINT_NAME, RunDirError, describe, run_files
+from lasmp.train_bounds import ITERATIONS
 from lasmp.train_cfg import TrainCfg, to_plain, to_train_cfg
 
 if TYPE_CHECKING:
@@ -143,11 +144,31 @@ def resumed_cfg(cfg: TrainCfg, data: dict, explicit: set[str] | None) -> TrainCf
         return to_train_cfg(merged)
 
 
+def check_iteration(data: dict) -> None:
+    """Refuse a checkpoint whose stored iteration is no iteration count, or disagrees with its file's
+    name (`model_<N>.pt`, `policy_<N>.pt`): renamed or altered, it would continue the run from one
+    place and number its saves from another (an iteration of 10^15 wrote model_1000000000000001.pt)."""
+    path, stored = Path(data["path"]), data.get("iter")
+    if not ITERATIONS.holds(stored, integer=True):
+        raise CheckpointError(
+            f"{path} stores iteration {stored!r}, not an iteration count in {ITERATIONS.interval()} "
+            f"({ITERATIONS.why}): the file was altered; give another checkpoint"
+        )
+    named = CHECKPOINT_NAME.fullmatch(path.name)
+    if named and int(named.group(2)) != stored:
+        raise CheckpointError(
+            f"{path} stores iteration {stored}, but its name says {named.group(2)}: it was renamed or altered, "
+            f"so where the run stands is unclear. Rename it {named.group(1)}_{stored}.pt if it holds that "
+            "iteration, or give another checkpoint"
+        )
+
+
 def check_resume(cfg: TrainCfg, data: dict) -> dict[str, tuple]:
     """Refuse a resume that cannot go as `cfg` says, before anything is built or written; return
     the keys it changes from the checkpoint's config, {key: (saved, now)}."""
     path = data["path"]
     refuse_policy_only(data)
+    check_iteration(data)
     try:
         check_finite({k: data[k] for k in data if k.endswith("state_dict")}, f"checkpoint {path}")
     except FloatingPointError as err:
@@ -369,10 +390,18 @@ def check_run_dir(log_dir: Path, data: dict | None):
             position = int(m.group(1)) if m else data["iter"]  # where the resumed file sits in the run
             later = [p.name for n, p in run_checkpoints(run_dir).items() if n > position]
             if later:
+                # only a full checkpoint can be resumed: never advise a policy checkpoint, whose refusal
+                # would send the user back here
+                full = [p.name for n, p in run_checkpoints(run_dir, full_only=True).items() if n > position]
+                advice = (
+                    f"Resume from {full[-1]}, the newest full checkpoint, or give"
+                    if full
+                    else "The later ones are policy checkpoints, which cannot resume: give"
+                )
                 raise RunDirError(
                     f"resume={data['path']} is not the latest checkpoint of {run_dir} ({describe(later)} came "
-                    f"later): continuing there would overwrite them. Resume from {later[-1]}, or give "
-                    "runner.log_dir=NEW_DIR to branch off into a new directory"
+                    f"later): continuing there would overwrite them. {advice} runner.log_dir=NEW_DIR to branch "
+                    "off into a new directory"
                 )
             return
         held = run_files(run_dir)

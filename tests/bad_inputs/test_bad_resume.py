@@ -134,6 +134,15 @@ CHECKPOINT_CASES = {
     "no config": (_edit(_pop("config")), "lacks 'config'"),
     "no iteration": (_edit(_pop("iter")), "lacks 'iter'"),
     "an iteration that is not a number": (_edit(lambda d: d.update(iter="five")), "iter"),
+    # a run continued from it would number its saves from there (model_1000000000000001.pt)
+    "an iteration of 10^15": (
+        _edit(lambda d: d.update(iter=10**15)),
+        r"stores iteration 10+, not an iteration count",
+    ),
+    "a stored iteration other than its name's": (
+        _edit(lambda d: d.update(iter=7)),
+        r"model_1\.pt stores iteration 7, but its name says 1: it was renamed or altered",
+    ),
     "a hostile payload": (_hostile, "pickled Python objects"),
     "a policy checkpoint": (_policy_only, "policy checkpoint"),
     "a NaN weight": (_edit(_nan_weight), "non-finite"),
@@ -217,7 +226,7 @@ def test_a_bad_checkpoint_given_to_resume_is_refused_and_nothing_is_written(base
     make, pattern = CHECKPOINT_CASES[case]
     bad_dir = tmp_path / "bad"
     bad_dir.mkdir()
-    given = make(base_run / "model_1.pt", bad_dir / "model_5.pt")
+    given = make(base_run / "model_1.pt", bad_dir / "model_1.pt")  # its name and stored iteration agree
     before = files(bad_dir)
     out = train(tiny(f"resume={given}", f"runner.log_dir={bad_dir}"))
     refused(out, pattern)
@@ -289,3 +298,23 @@ def test_resume_with_the_run_directory_alone_continues_the_runs_own_config(run_c
     succeeded(out)
     assert latest(run_copy).name == "model_3.pt"
     assert OmegaConf.load(run_copy / "config.yaml").env.num_envs == 4
+
+
+# -- a resume from an earlier checkpoint: the advice never sends the user back and forth -----------
+def test_resuming_an_earlier_checkpoint_advises_the_newest_full_one_never_a_policy_checkpoint(run_copy):
+    from lasmp.algo.checkpoint import policy_checkpoint
+
+    before = files(run_copy)
+    out = train(tiny(f"resume={run_copy / 'model_0.pt'}", f"runner.log_dir={run_copy}"))
+    refused(out, r"Resume from model_1\.pt, the newest full checkpoint")
+    # the later checkpoint became a policy checkpoint: resuming it is refused too, so it is not advised
+    policy_checkpoint(run_copy / "model_1.pt", run_copy / "policy_1.pt")
+    (run_copy / "model_1.pt").unlink()
+    out = train(tiny(f"resume={run_copy / 'model_0.pt'}", f"runner.log_dir={run_copy}"))
+    refused(
+        out,
+        r"policy_1\.pt came later",
+        r"policy checkpoints, which cannot resume: give runner\.log_dir=NEW_DIR",
+    )
+    assert "Resume from policy_1" not in out.text
+    assert not (run_copy / "model_2.pt").exists() and set(files(run_copy)) - set(before) == {"policy_1.pt"}

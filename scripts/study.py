@@ -665,7 +665,10 @@ def run_step(args: argparse.Namespace) -> None:
 
         columns = ["--paper-columns"] if args.paper_columns else []
         raise SystemExit(
-            results_table.main([*summary_args(), "--json", str(RESULTS / "summary.json"), *columns])
+            # the study's own summary.json, rewritten from its results each time: --force
+            results_table.main(
+                [*summary_args(), "--json", str(RESULTS / "summary.json"), "--force", *columns]
+            )
         )
     elif args.cmd == "train":
         train(args.method, args.seed, args.n)

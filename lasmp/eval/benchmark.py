@@ -65,7 +65,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lasmp.atomic import atomic_open
+from lasmp.atomic import atomic_open, claim_output
 from lasmp.config import DomainRandCfg
 from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, sample_intrinsics
@@ -373,8 +373,8 @@ def _report(info: dict, as_json: bool) -> None:
 
 
 def main(argv=None) -> int:
-    """The CLI (module docstring). `generate` checks --out (extension, an existing file only with
-    --force, a writable directory) before drawing anything; a user's error or a failed write is one
+    """The CLI (module docstring). `generate` checks --out's extension and claims the file
+    (lasmp.atomic.claim_output: an existing file only with --force) before drawing anything; a user's error or a failed write is one
     line `error: ...` and exit code 2."""
     ap = argparse.ArgumentParser(prog="python -m lasmp.eval.benchmark", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -398,17 +398,17 @@ def main(argv=None) -> int:
     try:
         if args.cmd == "generate":
             which = SETS[args.set]
-            path = check_out_file(
-                args.out or which.path, suffixes=(".npz",), force=args.force, option="--out"
-            )
-            bench = generate(
-                args.num_trajectories or which.num_trajectories,
-                args.num_robots or which.num_robots,
-                which.seed if args.seed is None else args.seed,
-            )
-            if which is VALIDATION:
-                check_validation(bench, path)  # before anything is written
-            save(path, bench)
+            # extension and directory checked here; the file itself claimed (create-exclusive) below
+            path = check_out_file(args.out or which.path, suffixes=(".npz",), force=True, option="--out")
+            with claim_output(path, force=args.force, option="--out"):
+                bench = generate(
+                    args.num_trajectories or which.num_trajectories,
+                    args.num_robots or which.num_robots,
+                    which.seed if args.seed is None else args.seed,
+                )
+                if which is VALIDATION:
+                    check_validation(bench, path)  # before anything is written
+                save(path, bench)
         else:
             path = args.file
             bench = load(path)

@@ -14,7 +14,8 @@ half-width over seeds (t_{0.975, n-1} s / sqrt(n), scipy.stats.t; null for a sin
 spread can be estimated from one), and the per-seed values. Printed as a Markdown table
 `mean ± ci95` (a single seed: its value alone) and the number of seeds, with, for the methods that estimate, the
 estimators' errors averaged over seeds. Written (atomically, strict JSON) to --json, by default
-results/study/summary.json:
+results/study/summary.json; a file already there is refused unless --force (the name is claimed
+before the results are read, lasmp.atomic.claim_output):
 
     {"methods": {NAME: {"seeds": [DIR, ...],
                         "learner_per_seed": ["bfloat16" | "float32" | null, ...],
@@ -40,6 +41,7 @@ import numpy as np
 from scipy import stats
 
 from lasmp.algo.checkpoint import read_checkpoint
+from lasmp.atomic import claim_output
 from lasmp.eval.metrics import ALL_METRICS, METRICS
 from lasmp.eval.report import LABELS, atomic_write_text, dumps
 
@@ -215,6 +217,7 @@ def main(argv=None) -> int:
     p.add_argument("dirs", nargs="*", help="evaluation directories, one method each (or use --method groups)")
     p.add_argument("--labels", nargs="+", help="with plain DIRs: row names (default: the directory names)")
     p.add_argument("--json", type=Path, default=DEFAULT_JSON, help=f"summary file (default {DEFAULT_JSON})")
+    p.add_argument("--force", action="store_true", help="overwrite --json if it exists")
     p.add_argument("--paper-columns", action="store_true", help="print only the paper's five metrics")
     try:
         rest, method_groups = _groups(argv)
@@ -236,10 +239,15 @@ def main(argv=None) -> int:
     if len(set(names)) != len(names):
         p.error(f"a method is named twice: {names}")
     try:
-        summ = summary(dict(method_groups))
-    except (FileNotFoundError, ValueError) as err:
-        p.error(str(err))
-    atomic_write_text(args.json, dumps(summ))
+        with claim_output(args.json, force=args.force, option="--json") as out:  # claimed before reading
+            try:
+                summ = summary(dict(method_groups))
+            except (FileNotFoundError, ValueError) as err:
+                p.error(str(err))
+            atomic_write_text(out, dumps(summ))
+    except OSError as err:  # a user's file (OutputExistsError), a full disk: one line naming it
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     print(metrics_table(summ, METRICS if args.paper_columns else ALL_METRICS))
     est = estimator_table(summ)
     if est:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import atomic_open
+from lasmp.atomic import OutputExistsError, atomic_open, claim_output
 from lasmp.envs.trajectories.fileformat import load, save
 from lasmp.envs.trajectories.generate import PROBE_ROWS, ranges_for_split, sample, sample_bytes
 from lasmp.envs.trajectories.splines import (
@@ -145,10 +145,24 @@ def main(argv=None) -> int:
     args.num = args.default_num if args.num is None else args.num
     for key, default in SAMPLING.items():
         setattr(args, key, default if getattr(args, key) is None else getattr(args, key))
+    if args.cmd == "stats":
+        return _run(args)
+    try:  # the file it writes: extension checked, then claimed (create-exclusive) before any sampling
+        suffixes = PLOT_SUFFIXES if args.cmd == "plot" else (".npz",)
+        check_out_file(args.out, suffixes=suffixes, force=True, option="--out")
+        with claim_output(args.out, force=args.force, option="--out"):
+            return _run(args)
+    except (InputError, OutputExistsError) as exc:  # a bad extension; the file exists (no --force)
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as err:  # AtomicWriteError (a full disk, ...): it names the file, left as it was
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+
+
+def _run(args) -> int:
+    """Sample or read the set, then print its statistics or write --out (claimed by `main`)."""
     try:
-        if args.cmd != "stats":  # the file it writes, checked before any sampling
-            suffixes = PLOT_SUFFIXES if args.cmd == "plot" else (".npz",)
-            check_out_file(args.out, suffixes=suffixes, force=args.force, option="--out")
         traj = _traj_from_args(args)
     except ValueError as exc:  # InputError, a bad file (TrajectoryFileError) or construction
         print(f"error: {exc}", file=sys.stderr)
@@ -163,16 +177,13 @@ def main(argv=None) -> int:
         else:
             print_table(st)
         return 0
-    try:
+    try:  # an OSError (a full disk) reaches `main`, which reports it
         if args.cmd == "plot":
             _plot(traj, statistics(traj, args.dt), args.out, args.dt)
             print(f"wrote {args.out}", file=sys.stderr)
         else:
             save(args.out, traj, meta={"split": args.split, "seed": args.seed, "num": args.num})
             print(f"wrote {len(traj)} trajectories to {args.out}", file=sys.stderr)
-    except OSError as err:  # AtomicWriteError (a full disk, ...): it names the file, left as it was
-        print(f"error: {err}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
         print(f"interrupted: {args.out} not written", file=sys.stderr)
         return 130

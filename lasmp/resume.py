@@ -373,6 +373,14 @@ class Resume:
             )
         first = runner.current_learning_iteration
         last = first + self.cfg.runner.max_iterations - 1
+        abandoned = self.data.get("abandoned_rollout")
+        if abandoned and not self.cfg.resume_drop_env_state:
+            say(
+                f"resume: not exact: {self.data['path']} was saved when a signal stopped iteration "
+                f"{abandoned['iteration']}'s rollout {abandoned['env_steps']} env-steps in; the envs go on from "
+                "that moment, not from the end of the saved iteration",
+                flush=True,
+            )
         say(
             f"resumed from {self.data['path']} at iteration {first} (0\u2013{first - 1} done); runner.max_iterations "
             f"counts the iterations to add: {self.cfg.runner.max_iterations} more, to {last}",

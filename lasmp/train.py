@@ -172,6 +172,8 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
                         f"{stop}\nresume with:\n  {resume_command(stop.checkpoint, str(log_dir), left)}",
                         flush=True,
                     )
+                else:  # stopped before any iteration completed (the reason is in the message)
+                    say(str(stop), flush=True)
                 raise
             except OSError as err:
                 raise _named(err, runner, log_dir) from err

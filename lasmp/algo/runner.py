@@ -6,9 +6,18 @@
 - Faults: each iteration counts the env-steps whose physics faulted (the env's `fault_count`; the
   progress line shows them); more than `max_fault_fraction` of an iteration's env-steps raises
   `TrainingFaulted` during its rollout, before its update, naming the cause.
-- Interruption: SIGINT (Ctrl-C) or SIGTERM during `learn` lets the current iteration finish, writes
-  `model_<it>.pt` and raises `TrainingInterrupted` (the caller prints the resume command). A second
-  signal exits at once (`SystemExit`, code 128 + signal: 130 / 143), without a checkpoint. A rank of
+- Interruption: SIGINT (Ctrl-C) or SIGTERM during `learn` stops it within one env-step and raises
+  `TrainingInterrupted` (the caller prints the resume command). Signalled during an update (or in a
+  torchrun job, whose ranks can only agree at an iteration's end), the iteration finishes and
+  `model_<it>.pt` is written: its resume is exact. Signalled during a rollout, the rollout is
+  abandoned (no update has used it) and the state of the last completed iteration `it - 1` is kept:
+  where `model_<it-1>.pt` is in the run directory already, it is the checkpoint (exact, nothing is
+  written); otherwise `model_<it-1>.pt` is written with the networks and optimizers of iteration
+  `it - 1` and the envs' state of the moment the rollout stopped, marked `abandoned_rollout`: the
+  resume says that it is not exact (the envs had run some steps of iteration `it`, and the observation
+  normalizers, if any, had seen them). Before any iteration completed nothing is saved. A second
+  signal ends the process at once with 128 + signal (130 / 143) and one line, without a checkpoint
+  (`_exit_now`). A rank of
   a torchrun job that leaves `learn` on an exception ignores both signals from then on: the process
   is ending, and its report must not be cut by torchrun's agent terminating the ranks left.
 - Where the fault guard and the interruption fire: inside rsl_rl's `OnPolicyRunner.learn`, from
@@ -35,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import signal
 import sys
 import threading
@@ -89,15 +99,18 @@ def _array_bytes(obj, seen: set[int] | None = None) -> int:
 
 
 class TrainingInterrupted(Exception):
-    """Training stopped on a signal after iteration `iteration`, saved to `checkpoint`."""
+    """Training stopped on a signal after iteration `iteration` (-1: none completed), saved to
+    `checkpoint` (None: nothing saved); `how` replaces the default account of what was kept."""
 
-    def __init__(self, signum: int, iteration: int, checkpoint: str | None):
+    def __init__(self, signum: int, iteration: int, checkpoint: str | None, how: str | None = None):
         self.signum, self.iteration, self.checkpoint = signum, iteration, checkpoint
         name = signal.Signals(signum).name
-        super().__init__(
-            f"{name} received: stopped after iteration {iteration}"
-            + (f", saved {checkpoint}" if checkpoint else " (no log_dir: nothing saved)")
-        )
+        default = f", saved {checkpoint}" if checkpoint else " (no log_dir: nothing saved)"
+        super().__init__(f"{name} received: stopped after iteration {iteration}" + (how or default))
+
+
+class _RolloutAbandoned(Exception):
+    """Raised from the rollout loop (after an env-step) when a stop was asked for: caught by `learn`."""
 
 
 class TrainingFaulted(RuntimeError):
@@ -147,6 +160,9 @@ class LasmpRunner(OnPolicyRunnerCompat):
         self.logger.step_done = self._check_faults
         self.logger.iteration_done = self._after_iteration
         self._signal: int | None = None
+        self._under_way = 0  # the iteration whose rollout or update is under way
+        self._rollout_steps = 0  # the env-steps of its rollout so far
+        self._abandoned: dict | None = None  # while saving at a rollout's stop: which rollout, how far
         self.validator = validator
         self.validation_interval = validation_interval if validator is not None else 0
         self.validation_history: list[dict] = []  # every score of the run, resumes included
@@ -218,7 +234,12 @@ class LasmpRunner(OnPolicyRunnerCompat):
     # -- fault guard ------------------------------------------------------------------------------
     def _check_faults(self) -> None:
         """After each env-step of a rollout: count the iteration's faulted env-steps so far for the
-        progress line; stop as soon as they pass the threshold (the count only grows in a rollout)."""
+        progress line; stop as soon as they pass the threshold (the count only grows in a rollout).
+        A stop asked for (a signal) abandons the rollout here, alone (a torchrun job's ranks stop
+        together at the iteration's end)."""
+        self._rollout_steps += 1
+        if self._signal is not None and not self.is_distributed:
+            raise _RolloutAbandoned()
         count = getattr(self.env, "fault_count", None)
         if count is None:
             return
@@ -251,13 +272,30 @@ class LasmpRunner(OnPolicyRunnerCompat):
                 file=sys.stderr,
                 flush=True,
             )
-            raise SystemExit(128 + signum)
+            self._exit_now(128 + signum)
         self._signal, self._signal_time_s = signum, time.monotonic()
         print(
-            f"\n{signal.Signals(signum).name}: finishing this iteration, then saving a checkpoint "
-            "(send it again to abort at once)",
+            f"\n{signal.Signals(signum).name}: stopping, then saving a checkpoint (send it again to abort at once)",
             flush=True,
         )
+
+    @staticmethod
+    def _exit_now(code: int) -> None:
+        """End the process with `code` at once: `os._exit`, after flushing the console. Why not an
+        exception (SystemExit, KeyboardInterrupt): the handler runs wherever the main thread is, and
+        the most likely place for a second signal is inside torch.save of a large checkpoint, whose
+        zip writer turns any exception of its Python file's write into `RuntimeError` (a traceback,
+        exit 1); an `except` on the way could also catch it or add to it. `os._exit` runs no
+        handler, so nothing can print after the handler's line. A checkpoint being written is left
+        as its hidden temporary file (`.model_<it>.pt.*.tmp`), never under its final name (the
+        write renames only a complete file); the next command that holds the run directory removes
+        it (`lasmp.atomic.remove_stale_temporaries`, when `lasmp.rundir` claims the directory)."""
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except Exception:  # a closed or broken console must not keep the process alive
+                pass
+        os._exit(code)
 
     # -- validation -------------------------------------------------------------------------------
     def wall_s(self) -> float:
@@ -307,6 +345,7 @@ class LasmpRunner(OnPolicyRunnerCompat):
         )
 
     def _after_iteration(self, it: int) -> None:
+        self._under_way, self._rollout_steps = it + 1, 0
         self._faults_before = getattr(self.env, "fault_count", 0)  # the next rollout's faults count from here
         if self._signal is None:  # a stop asked for saves at once, without a validation first
             self._validate_if_due(it)
@@ -327,11 +366,15 @@ class LasmpRunner(OnPolicyRunnerCompat):
         if threading.current_thread() is threading.main_thread():
             previous = {s: signal.signal(s, self._on_signal) for s in INTERRUPT_SIGNALS}
         self._signal = None
+        self._under_way, self._rollout_steps = self.current_learning_iteration, 0
         self._learn_start_s = time.perf_counter()
         self._final_iteration = self.current_learning_iteration + num_learning_iterations - 1
         self._faults_before = getattr(self.env, "fault_count", 0)
         try:
-            super().learn(num_learning_iterations, init_at_random_ep_len)
+            try:
+                super().learn(num_learning_iterations, init_at_random_ep_len)
+            except _RolloutAbandoned:
+                self._stop_in_rollout()
         except BaseException:
             if self.is_distributed and previous:
                 # this rank ends (stopped, or a peer lost): torchrun's agent, seeing a rank gone,
@@ -343,6 +386,29 @@ class LasmpRunner(OnPolicyRunnerCompat):
             for s, handler in previous.items():
                 signal.signal(s, handler)
             self._wall_before_s, self._learn_start_s = self.wall_s(), None
+
+    def _stop_in_rollout(self) -> None:
+        """A signal during the rollout of iteration `self._under_way`: keep the state of the last
+        completed one (see the module's docstring) and raise `TrainingInterrupted`."""
+        it, done = self._under_way, self._under_way - 1
+        during = f" (during iteration {it}'s rollout, {self._rollout_steps} env-steps in, abandoned)"
+        run_dir = self.logger.log_dir
+        if done < 0 or run_dir is None:
+            how = "; no iteration completed: nothing saved" if done < 0 else " (no log_dir: nothing saved)"
+            raise TrainingInterrupted(self._signal, done, None, during + how)
+        path = Path(run_dir) / f"model_{done}.pt"
+        if path.is_file():  # iteration done's own checkpoint: its resume is exact
+            self.logger.stop_logging_writer()
+            raise TrainingInterrupted(self._signal, done, str(path), f"{during}; its checkpoint is {path}")
+        self.current_learning_iteration = done
+        self._abandoned = {"iteration": it, "env_steps": self._rollout_steps}
+        try:
+            self.save(str(path))
+        finally:
+            self._abandoned = None
+        self.logger.stop_logging_writer()
+        how = f"{during}; saved {path} (iteration {done}, with the envs' state of the stop: not an exact resume)"
+        raise TrainingInterrupted(self._signal, done, str(path), how)
 
     # -- checkpoints -------------------------------------------------------------------------------
     def save(self, path: str, infos: dict | None = None) -> None:
@@ -384,6 +450,8 @@ class LasmpRunner(OnPolicyRunnerCompat):
                 "wall_s": self.wall_s(),
             },
         )
+        if self._abandoned:  # saved at a rollout's stop: a resume says it is not exact
+            data["abandoned_rollout"] = dict(self._abandoned)
         if self.is_distributed:  # every rank's envs, so that a resume of the job continues each of them
             data["other_ranks"] = self._other_ranks
             data["world_size"] = self.gpu_world_size

@@ -18,6 +18,7 @@ empty critic cannot be mistaken for one (a resume refuses any policy checkpoint)
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
@@ -31,6 +32,7 @@ from lasmp.algo.checkpoint import (
     is_policy_only,
     read_checkpoint,
 )
+from lasmp.atomic import OutputExistsError, claim_output
 from lasmp.inputs import InputError, check_out_file
 
 LIGHT_KIND = "actor"  # the `kind` of a light checkpoint (a policy checkpoint is "policy")
@@ -67,16 +69,24 @@ def same_actions(a: dict, b: dict) -> bool:
 
 def write_light(src: str | Path, dst: str | Path, force: bool = False) -> Path:
     """The light form of `src` at `dst` (an existing `dst` only with `force`; `src` itself only through
-    `convert_in_place`), read back and checked to hold `src`'s actor bit for bit."""
+    `convert_in_place`), read back and checked to hold `src`'s actor bit for bit. `dst` is claimed
+    before `src` is read (`lasmp.atomic.claim_output`, create-exclusive): a file already there, or one
+    another run claimed meanwhile, is refused without `force`, and a failed run leaves no empty file."""
     src = checkpoint_file(src)
     try:
-        dst = check_out_file(dst, suffixes=(".pt", ".pth"), force=force, option="DST")
+        dst = check_out_file(dst, suffixes=(".pt", ".pth"), force=True, option="DST")
     except InputError as err:
         raise CheckpointError(str(err)) from None
     if Path(dst).resolve() == src.resolve():
         raise CheckpointError(f"{dst} is {src}: give another DST, or convert with --in-place")
-    data = read_checkpoint(src)
-    atomic_torch_save(light(data), dst)
+    claims = contextlib.ExitStack()
+    try:
+        claims.enter_context(claim_output(dst, force=force, option="DST"))
+    except OutputExistsError as err:
+        raise CheckpointError(str(err)) from None
+    with claims:
+        data = read_checkpoint(src)
+        atomic_torch_save(light(data), dst)
     if not same_actions(data, read_checkpoint(dst)):
         raise CheckpointError(f"{dst}: its actor differs from {src}'s after writing")
     return Path(dst)
@@ -117,7 +127,7 @@ def main(argv=None) -> int:
         dst = write_light(*args.paths, force=args.force)
         print(f"wrote {dst} ({dst.stat().st_size:,} bytes), actor only")
         return 0
-    except CheckpointError as err:
+    except (CheckpointError, OSError) as err:  # OSError: a full disk (AtomicWriteError names the file)
         print(f"error: {err}", file=sys.stderr)
         return 2
 

@@ -17,8 +17,9 @@ offscreen with `mujoco.Renderer`, which needs an OpenGL backend without a displa
 imageio-ffmpeg (`pip install -e .[video]`). `--viewer` opens MuJoCo's interactive viewer and
 needs a display (DISPLAY or WAYLAND_DISPLAY).
 
-Every file it writes (video, snapshots, export) is checked before the env is built (its extension,
-its directory, and that it replaces no file without --force) and is written whole or not at all.
+Every file it writes (video, snapshots, export) is checked and claimed before the env is built (its
+extension, its directory; created exclusively, so it replaces no file without --force and no other
+run writes it meanwhile) and is written whole or not at all.
 A write that fails is one line naming the file (exit 1); a Ctrl-C says what was and was not written
 (exit 130).
 """
@@ -38,7 +39,7 @@ from lasmp.deploy import load_deploy_env
 from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.inputs import InputError, int_arg, seed_arg
 from lasmp.modules.export import deploy_metadata
-from lasmp.render.outputs import EXPORT_FILES, Outputs, check_outputs, export_into
+from lasmp.render.outputs import EXPORT_FILES, Outputs, check_outputs, claim_outputs, export_into
 from lasmp.render.renderer import (
     SNAPSHOT_COUNT,
     EnvRenderer,
@@ -262,11 +263,13 @@ def main(argv: list[str] | None = None) -> int:
             ffmpeg_exe()
         if args.video or args.snapshots:
             check_offscreen_gl()
-    except (InputError, RenderError) as err:
+        claims = claim_outputs(args)  # last: the checks above leave nothing behind
+    except (InputError, RenderError, OSError) as err:  # OSError: a file there without --force, ...
         print(f"error: {err}", file=sys.stderr)
         return 2
     try:
-        return play(args, outputs)
+        with claims:  # an unwritten claim is removed when the run ends, however it ends
+            return play(args, outputs)
     except KeyboardInterrupt:
         outputs.remove_new_empty_dirs()
         print(outputs.interrupted(), file=sys.stderr)

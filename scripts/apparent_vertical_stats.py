@@ -18,12 +18,14 @@ level-acceleration probe's two motions, from their reference (the close drive tr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from lasmp.atomic import claim_output
 from lasmp.eval import cli
 from lasmp.eval import platform_probe as pp
 from lasmp.eval.report import atomic_write_text
@@ -123,31 +125,35 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, required=True, help="the JSON to write")
     p.add_argument("--force", action="store_true", help="overwrite --out")
     args = p.parse_args(argv)
+    claims = contextlib.ExitStack()
     try:  # the files named, before the minutes of replay
-        check_out_file(args.out, suffixes=(".json",), force=args.force, option="--out")
+        check_out_file(args.out, suffixes=(".json",), force=True, option="--out")
         bench = cli.load_or_make_benchmark(args.benchmark)
-    except (*cli.INPUT_ERRORS, InputError) as err:
+        # claimed last (create-exclusive): a file already there is refused without --force
+        claims.enter_context(claim_output(args.out, force=args.force, option="--out"))
+    except (*cli.INPUT_ERRORS, InputError, OSError) as err:
         p.error(str(err))
-    if not 1 <= args.episodes <= bench.num_trajectories:
-        p.error(f"--episodes must be in [1, {bench.num_trajectories}], got {args.episodes}")
-    from lasmp.config import build_env_cfg
-    from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
+    with claims:  # the claim is removed if the replay fails
+        if not 1 <= args.episodes <= bench.num_trajectories:
+            p.error(f"--episodes must be in [1, {bench.num_trajectories}], got {args.episodes}")
+        from lasmp.config import build_env_cfg
+        from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 
-    env_cfg = build_env_cfg(cli.eval_env_overrides(args.batch_envs, 0), schema=MovingPlatformCfg)
-    xi = pp.probe_platform(env_cfg, bench, args.episodes, args.batch_envs, stats=platform_stats)
-    probe = probe_motion_stats(env_cfg.sim.dt_s * env_cfg.sim.decimation)
-    text = table(xi, probe)
-    print(text)
-    result = {
-        "benchmark": str(args.benchmark),
-        "episodes": args.episodes,
-        "threshold_rad": THRESHOLD_RAD,
-        "xi_eval": {k: [None if np.isnan(x) else float(x) for x in v] for k, v in xi.items()},
-        "probe_motions": probe,
-        "table": text,
-    }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(args.out, json.dumps(result))
+        env_cfg = build_env_cfg(cli.eval_env_overrides(args.batch_envs, 0), schema=MovingPlatformCfg)
+        xi = pp.probe_platform(env_cfg, bench, args.episodes, args.batch_envs, stats=platform_stats)
+        probe = probe_motion_stats(env_cfg.sim.dt_s * env_cfg.sim.decimation)
+        text = table(xi, probe)
+        print(text)
+        result = {
+            "benchmark": str(args.benchmark),
+            "episodes": args.episodes,
+            "threshold_rad": THRESHOLD_RAD,
+            "xi_eval": {k: [None if np.isnan(x) else float(x) for x in v] for k, v in xi.items()},
+            "probe_motions": probe,
+            "table": text,
+        }
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(args.out, json.dumps(result))
     return 0
 
 

@@ -18,6 +18,7 @@ estimate errors, |u_aln_hat,xy| and the two tilts, and the fall times; and DIR/e
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -27,6 +28,7 @@ import numpy as np
 import torch
 
 from lasmp.algo.checkpoint import checkpoint_file
+from lasmp.atomic import atomic_write_with, claim_output
 from lasmp.eval import cli
 from lasmp.eval.benchmark import Benchmark
 from lasmp.eval.real_motion import suite as rm
@@ -156,7 +158,7 @@ def plot(summary: dict, path: Path) -> None:
     np.atleast_1d(axes)[0].set_ylabel("m/s (mean over the robots standing)")
     np.atleast_1d(axes)[0].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic_write_with(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
 
 
 def main(argv=None) -> int:
@@ -166,30 +168,36 @@ def main(argv=None) -> int:
     p.add_argument("--benchmark", type=Path, default=cli.DEFAULT_BENCHMARK)
     p.add_argument("--robots-per-scenario", type=int, default=rm.DEFAULT_ROBOTS_PER_SCENARIO)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--force", action="store_true", help="overwrite DIR/estimates.json")
+    p.add_argument("--force", action="store_true", help="overwrite DIR/estimates.json and DIR/estimates.png")
     args = p.parse_args(argv)
     torch.set_num_threads(1)  # as evaluate.py: more threads contend with the physics thread pool
-    target = args.out / "estimates.json"
+    target, figure = args.out / "estimates.json", args.out / "estimates.png"
+    claims = contextlib.ExitStack()
     try:  # the files named, before the minutes of play
-        check_out_file(target, suffixes=(".json",), force=args.force, option="--out")
+        check_out_file(target, suffixes=(".json",), force=True, option="--out")
         args.checkpoint = checkpoint_file(args.checkpoint)
         bench = cli.load_or_make_benchmark(args.benchmark)
-    except (*cli.INPUT_ERRORS, InputError) as err:
+        # both files claimed last (create-exclusive): one already there is refused without --force
+        for path in (target, figure):
+            claims.enter_context(claim_output(path, force=args.force, option="--out"))
+    except (*cli.INPUT_ERRORS, InputError, OSError) as err:
+        claims.close()
         p.error(str(err))
-    per_episode, arrays, dt, names = record(args, bench)
-    summary = {"checkpoint": str(args.checkpoint), "robots_per_scenario": args.robots_per_scenario}
-    summary.update(summarize(per_episode, arrays, dt, names, args.robots_per_scenario))
-    args.out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(target, json.dumps(summary, indent=1))
-    plot(summary, args.out / "estimates.png")
-    for name, m in summary["motions"].items():
-        print(f"{name}: {m['falls']} falls")
-        for w in m["windows"][::2]:
-            print(
-                f"  t {w['t_s']:5.2f} s  standing {w['robots_standing']:3d}  |v_plf| true {w['v_plf_true']:5.2f} "
-                f"est {w['v_plf_est']:5.2f}  |u_aln| true {w['u_aln_true']:5.2f} est {w['u_aln_est']:5.2f}  "
-                f"tilt: world {w['tilt_world_rad']:5.3f} apparent {w['tilt_from_apparent_vertical_rad']:5.3f}"
-            )
+    with claims:  # a claim not written (a failed play, no matplotlib) is removed
+        per_episode, arrays, dt, names = record(args, bench)
+        summary = {"checkpoint": str(args.checkpoint), "robots_per_scenario": args.robots_per_scenario}
+        summary.update(summarize(per_episode, arrays, dt, names, args.robots_per_scenario))
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(target, json.dumps(summary, indent=1))
+        plot(summary, figure)
+        for name, m in summary["motions"].items():
+            print(f"{name}: {m['falls']} falls")
+            for w in m["windows"][::2]:
+                print(
+                    f"  t {w['t_s']:5.2f} s  standing {w['robots_standing']:3d}  |v_plf| true {w['v_plf_true']:5.2f} "
+                    f"est {w['v_plf_est']:5.2f}  |u_aln| true {w['u_aln_true']:5.2f} est {w['u_aln_est']:5.2f}  "
+                    f"tilt: world {w['tilt_world_rad']:5.3f} apparent {w['tilt_from_apparent_vertical_rad']:5.3f}"
+                )
     return 0
 
 

@@ -1,6 +1,6 @@
 """Where a policy's world tilt comes from: a posture held, a sway about it, or the deck's tilt followed.
 
-    python scripts/tilt_probe.py CHECKPOINT [--episodes 128] [--benchmark benchmarks/xi_eval.npz] [--json out.json]
+    python scripts/tilt_probe.py CHECKPOINT [--episodes 128] [--benchmark benchmarks/xi_eval.npz] [--json out.json [--force]]
 
 evaluate.py's rotation deviation (world tilt) is, per episode, the mean angle between the trunk's z
 axis at the start and at each step, in the trunk's heading frame (lasmp.eval.metrics). This plays
@@ -19,6 +19,7 @@ Each figure averages over episodes, their steps before a collision counted as th
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -29,7 +30,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from lasmp.algo.checkpoint import checkpoint_file  # noqa: E402
-from lasmp.atomic import atomic_open  # noqa: E402
+from lasmp.atomic import atomic_open, claim_output  # noqa: E402
 from lasmp.envs.robot import as_numpy  # noqa: E402
 from lasmp.eval.benchmark import Benchmark  # noqa: E402
 from lasmp.eval.cli import DEFAULT_BENCHMARK, INPUT_ERRORS, build, load_or_make_benchmark  # noqa: E402
@@ -153,21 +154,28 @@ def main(argv=None) -> int:
     p.add_argument("--episodes", type=int_arg(1, 10_000), default=128)
     p.add_argument("--benchmark", type=Path, default=DEFAULT_BENCHMARK)
     p.add_argument("--json", type=Path, help="write the figures here too")
+    p.add_argument("--force", action="store_true", help="overwrite --json if it exists")
     args = p.parse_args(argv)
+    claims = contextlib.ExitStack()
     try:  # the files named, before the minutes of play
         checkpoint = checkpoint_file(args.checkpoint)
         if args.json:
             check_out_file(args.json, suffixes=(".json",), force=True, option="--json")
         bench = load_or_make_benchmark(args.benchmark)
-    except (*INPUT_ERRORS, InputError) as err:
+        if args.json:  # claimed last (create-exclusive): a file already there is refused without --force
+            claims.enter_context(claim_output(args.json, force=args.force, option="--json"))
+    except (*INPUT_ERRORS, InputError, OSError) as err:
         p.error(str(err))
-    arrays, dt_s = play(checkpoint, args.episodes, bench)
-    figures = summary(tilt_split(**arrays, dt_s=dt_s))
-    for k, v in figures.items():
-        print(f"{k:22s} {v:.4f}" if isinstance(v, float) else f"{k:22s} {v}")
-    if args.json:
-        with atomic_open(args.json, "w") as f:
-            json.dump({"checkpoint": str(args.checkpoint), "episodes": args.episodes, **figures}, f, indent=1)
+    with claims:  # the claim is removed if the play fails
+        arrays, dt_s = play(checkpoint, args.episodes, bench)
+        figures = summary(tilt_split(**arrays, dt_s=dt_s))
+        for k, v in figures.items():
+            print(f"{k:22s} {v:.4f}" if isinstance(v, float) else f"{k:22s} {v}")
+        if args.json:
+            with atomic_open(args.json, "w") as f:
+                json.dump(
+                    {"checkpoint": str(args.checkpoint), "episodes": args.episodes, **figures}, f, indent=1
+                )
     return 0
 
 

@@ -28,6 +28,7 @@ it is); a checkpoint of a newer format than CHECKPOINT_VERSION says to update la
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
 import re
@@ -39,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from lasmp.atomic import atomic_open
+from lasmp.atomic import OutputExistsError, atomic_open, claim_output
 from lasmp.inputs import InputError, check_out_file
 from lasmp.rundir import CHECKPOINT_NAME, FULL, POLICY, run_checkpoints
 
@@ -227,8 +228,8 @@ def _check_format(data, path) -> None:
 def convert_trusted(src: str | Path, dst: str | Path, force: bool = False) -> Path:
     """Rewrite a checkpoint of an older lasmp (pickled running state) in today's plain format. This
     UNPICKLES `src`, which runs whatever code it holds: only for a file the user trusts (the CLI
-    asks for --trust). `dst` is checked (extension, an existing file only with `force`, a writable
-    directory) before `src` is read."""
+    asks for --trust). `dst` is checked (extension, a writable directory) and claimed (`claim_output`:
+    an existing file only with `force`) before `src` is read."""
     from lasmp.plainstate import PlainStateError, pack
 
     src = checkpoint_file(src)
@@ -237,30 +238,55 @@ def convert_trusted(src: str | Path, dst: str | Path, force: bool = False) -> Pa
         raise CheckpointError(f"{src} is not a PyTorch checkpoint ({why}): there is nothing to convert")
     if src.resolve() == Path(dst).resolve():
         raise CheckpointError(f"convert writes a new file: OUT must differ from IN ({src})")
-    dst = _out_file(dst, force)
-    try:
-        data = torch.load(src, map_location="cpu", weights_only=False)
-    except Exception as err:
-        raise CheckpointError(f"checkpoint {src} is unreadable: {err}") from err
-    _check_format(data, src)
-    run = (data.get("env_state") or {}).get("run")
-    if run is not None and run.get("format") != PLAIN_RUN_STATE_FORMAT:  # plain already: kept as it is
+    dst = _out_file(dst)
+    with _claim(dst, force, src):
         try:
-            run.update(format=PLAIN_RUN_STATE_FORMAT, sim=pack(run["sim"]), attrs=pack(run["attrs"]))
-        except (PlainStateError, KeyError, TypeError) as err:
-            raise CheckpointError(f"checkpoint {src}: its running state cannot be converted: {err}") from None
-    data.pop("path", None)
-    atomic_torch_save(data, dst)
+            data = torch.load(src, map_location="cpu", weights_only=False)
+        except Exception as err:
+            raise CheckpointError(f"checkpoint {src} is unreadable: {err}") from err
+        _check_format(data, src)
+        run = (data.get("env_state") or {}).get("run")
+        if run is not None and run.get("format") != PLAIN_RUN_STATE_FORMAT:  # plain already: kept as it is
+            try:
+                run.update(format=PLAIN_RUN_STATE_FORMAT, sim=pack(run["sim"]), attrs=pack(run["attrs"]))
+            except (PlainStateError, KeyError, TypeError) as err:
+                raise CheckpointError(
+                    f"checkpoint {src}: its running state cannot be converted: {err}"
+                ) from None
+        data.pop("path", None)
+        atomic_torch_save(data, dst)
     read_checkpoint(dst)  # the result must load safely
     return dst
 
 
-def _out_file(dst: str | Path, force: bool) -> Path:
-    """`dst` as a checkpoint file the tool may write (lasmp.inputs.check_out_file), as CheckpointError."""
+def _out_file(dst: str | Path) -> Path:
+    """`dst` as a checkpoint file the tool may write (lasmp.inputs.check_out_file: its extension, not a
+    directory, a writable directory), as CheckpointError. A file already there is `_claim`'s to refuse."""
     try:
-        return check_out_file(dst, suffixes=CHECKPOINT_SUFFIXES, force=force, option="OUT")
+        return check_out_file(dst, suffixes=CHECKPOINT_SUFFIXES, force=True, option="OUT")
     except InputError as err:
         raise CheckpointError(str(err)) from None
+
+
+def _claim(dst: Path, force: bool, src: Path | None = None) -> contextlib.ExitStack:
+    """`with _claim(dst, force, src): <read src, write dst atomically>`: `dst` claimed for this run
+    before the work (`lasmp.atomic.claim_output`, create-exclusive), so an existing file, or one
+    another run claimed meanwhile, is refused without `force`: a CheckpointError saying what the file
+    is (`src` itself, a full or a policy checkpoint), naming OUT and --force. The claim is removed
+    when the block fails before writing."""
+    claims = contextlib.ExitStack()
+    try:
+        claims.enter_context(claim_output(dst, force=force, option="OUT"))
+    except OutputExistsError:
+        if src is not None and dst.resolve() == src.resolve():
+            what = (
+                "is the checkpoint it is made from: writing over it would drop its optimizers' states "
+                "and running state, so that the run could no longer be resumed"
+            )
+        else:
+            what = f"already exists ({_kind_of(dst)})"
+        raise CheckpointError(f"{dst} {what}: choose another OUT, or pass --force to overwrite it") from None
+    return claims
 
 
 def atomic_torch_save(obj, path: str | Path) -> None:
@@ -306,26 +332,19 @@ def learning_rates(data: dict) -> dict[str, dict[str, float]]:
     }
 
 
-def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False) -> Path:
+def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False, claim: bool = True) -> Path:
     """Write the policy checkpoint of `src` (a checkpoint or run directory) to `dst`: everything but
     the optimizers' states and the envs' running state (networks with their normalizers, config,
     layout, the task's env state such as the curriculum). An existing `dst` (`src` itself included)
-    is overwritten only with `force`; `dst` is checked before `src` is read."""
-    src, dst = checkpoint_file(src), Path(dst)
-    if dst.exists() and not dst.is_dir() and not force:
-        if dst.resolve() == src.resolve():
-            what = (
-                "is the checkpoint it is made from: writing over it would drop its optimizers' states "
-                "and running state, so that the run could no longer be resumed"
-            )
-        else:
-            what = f"exists ({_kind_of(dst)})"
-        raise CheckpointError(f"{dst} {what}: give another OUT, or --force to overwrite it")
-    _out_file(dst, force)
-    data = read_checkpoint(src)
-    slim = policy_only(data, f"{Path(data['path']).name} (iteration {data['iter']})")
-    check_finite(slim, f"refusing to write {dst}")
-    atomic_torch_save(slim, dst)
+    is overwritten only with `force`; `dst` is checked and claimed (`_claim`) before `src` is read.
+    `claim=False` (with `force`) writes without the claim's placeholder: for `keep_newest_full`, inside a
+    locked run directory, where a training killed mid-way must not leave an empty policy_<N>.pt."""
+    src, dst = checkpoint_file(src), _out_file(dst)
+    with _claim(dst, force, src) if claim else contextlib.nullcontext():
+        data = read_checkpoint(src)
+        slim = policy_only(data, f"{Path(data['path']).name} (iteration {data['iter']})")
+        check_finite(slim, f"refusing to write {dst}")
+        atomic_torch_save(slim, dst)
     return Path(dst)
 
 
@@ -345,7 +364,8 @@ def keep_newest_full(run_dir: str | Path, keep_full: int) -> tuple[list[str], li
         try:
             if kind not in (None, "a policy checkpoint"):
                 raise CheckpointError(f"{dst.name} exists and is {kind}")
-            policy_checkpoint(src, dst, force=True)  # a policy_<N>.pt of an earlier, cut-short conversion
+            # force: a policy_<N>.pt of an earlier, cut-short conversion; no claim (an empty file) in a run
+            policy_checkpoint(src, dst, force=True, claim=False)
             read_checkpoint(dst)
         except (CheckpointError, OSError) as err:  # OSError: a full disk; the full one stays
             left.append(f"{src.name} ({err})")

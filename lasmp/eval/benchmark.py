@@ -56,16 +56,19 @@ Make them::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import io
 import json
 import os
 import sys
+import tempfile
 import zipfile
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import atomic_open, claim_output
+from lasmp.atomic import TEMPORARY_SUFFIX, AtomicWriteError, atomic_open, claim_output
 from lasmp.config import DomainRandCfg
 from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, sample_intrinsics
@@ -210,7 +213,14 @@ def check_validation(bench: Benchmark, path) -> Benchmark:
 
 def load_or_make(which: BenchmarkSet, path=None) -> Benchmark:
     """The benchmark `which` from `path` (default: its own file, drawn and written on first use); a
-    validation set is checked not to be Xi_eval (`check_validation`)."""
+    validation set is checked not to be Xi_eval (`check_validation`).
+
+    The first use writes the file with `_save_new`, not with a claim: whole (a temporary file, then
+    linked into place) and never over a file that appeared meanwhile. Two processes drawing it at
+    once (two evaluations started together on a fresh clone) both succeed: the first to finish puts
+    its file in place and the other reads that one, which holds the same bytes (the draw is
+    deterministic). A claim would be worse here: its empty placeholder is what a third process
+    would find and fail to read."""
     path = os.fspath(path or which.path)
     if os.path.lexists(path) or path != which.path:
         bench = load(path)
@@ -221,8 +231,43 @@ def load_or_make(which: BenchmarkSet, path=None) -> Benchmark:
             file=sys.stderr,
         )
         bench = generate_set(which)
-        save(path, bench)
+        if not _save_new(path, bench):  # another process drew it first (the same bytes), or a file appeared
+            bench = load(path)
     return check_validation(bench, path) if which is VALIDATION else bench
+
+
+def _save_new(path, bench: Benchmark) -> bool:
+    """`save` to `path` unless a file is there by the time the write is done (then False, that file
+    untouched): the whole file is written under a temporary name beside `path` and hard-linked to
+    `path` (link(2) fails on an existing name: create-exclusive, with the content complete). Where the
+    file system has no hard links, it is renamed over `path`, which at worst replaces another
+    process's draw by identical bytes. A failing file system is an AtomicWriteError naming `path`."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX, dir=path.parent)
+        os.close(fd)
+    except OSError as err:
+        raise AtomicWriteError(path, err) from err
+    try:
+        try:
+            save(tmp, bench)
+        except AtomicWriteError as err:
+            raise AtomicWriteError(path, err) from err
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            return False
+        except OSError:  # no hard links here (some network or FUSE file systems)
+            os.replace(tmp, path)
+        return True
+    except AtomicWriteError:
+        raise
+    except OSError as err:
+        raise AtomicWriteError(path, err) from err
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
 
 
 def _arrays(bench: Benchmark) -> dict[str, np.ndarray]:

@@ -28,12 +28,13 @@ and in the tail, after --late-s (with their share), and the three commonest caus
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import AtomicWriteError
+from lasmp.atomic import AtomicWriteError, claim_output
 from lasmp.eval.episodes import PROBE_COLUMNS, EpisodesFileError, episodes_path, read_csv
 from lasmp.inputs import InputError, check_out_file, float_arg, int_arg
 
@@ -271,9 +272,18 @@ def main(argv=None) -> int:
         "--row", metavar="LABEL", help="print only docs/evaluation.md's row of this run, named LABEL"
     )
     args = p.parse_args(argv)
+    with contextlib.ExitStack() as claims:
+        return _main(args, claims)
+
+
+def _main(args, claims: contextlib.ExitStack) -> int:
+    """main's work; `claims` holds the claim of --plot (removed when no plot is drawn)."""
     try:
         if args.plot is not None:  # before the reading: a refused plot costs nothing
-            check_out_file(args.plot, suffixes=(".png",), force=args.force, option="--plot")
+            check_out_file(args.plot, suffixes=(".png",), force=True, option="--plot")
+            # claimed (create-exclusive), not checked: an existing file, or one another run claimed
+            # meanwhile, is refused without --force, with no window between a check and the write
+            claims.enter_context(claim_output(args.plot, force=args.force, option="--plot"))
         path = episodes_path(args.dir)
         table = read_csv(path)
         if args.episodes is not None:
@@ -281,7 +291,7 @@ def main(argv=None) -> int:
         if args.probe_from is not None:
             other = episodes_path(args.probe_from)
             table = _naming(other, with_probe_from, table, read_csv(other))
-    except (EpisodesFileError, InputError) as err:
+    except (EpisodesFileError, InputError, OSError) as err:  # OSError: the plot already there, ...
         print(f"error: {err}", file=sys.stderr)
         return 2
     b = breakdown(table, args.late_s)

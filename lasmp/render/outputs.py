@@ -1,39 +1,65 @@
-"""The files a play run writes (video, snapshots, the exported policy): checked before any work,
-written whole, and reported when the run is interrupted.
+"""The files a play run writes (video, snapshots, the exported policy): checked and claimed before
+any work, written whole, and reported when the run is interrupted.
 
 Why here and not in each writer: a run writes up to four files, and a user needs every one of them
 checked before the env is built (a read-only directory found after a five-minute rollout is five
 minutes lost), and, when the run fails or is interrupted, one line saying which were written.
+
+Each file is claimed (`lasmp.atomic.claim_output`: created exclusively as an empty placeholder) before
+the env is built, so a file the user already has is refused without --force, and a second run started
+meanwhile cannot write the same name (no window between a check and the write). The export is claimed
+file by file (policy.onnx and policy.json in --out), not as a folder: --out may well be a directory
+that exists and holds other things (a run directory, a deploy folder), which an exclusive mkdir would
+refuse for no reason, while the two files are exactly what the export replaces.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import tempfile
 from pathlib import Path
 
-from lasmp.atomic import AtomicWriteError
+from lasmp.atomic import AtomicWriteError, claim_output
 from lasmp.inputs import check_out_file, missing_dirs
 from lasmp.modules.export import export_policy
 
 EXPORT_FILES = ("policy.onnx", "policy.json")  # what --export onnx writes into --out
 
 
-def check_outputs(args) -> list[Path]:
-    """The files this run will write (video, snapshots, export), each checked by `check_out_file`
-    before any work: a known extension, no existing file without --force, a writable directory.
-    InputError otherwise; nothing is created."""
+def output_files(args) -> list[tuple[Path, tuple[str, ...], str]]:
+    """(file, known extensions, option naming it) of each file this run will write."""
     out = []
     if args.video:
-        out.append(check_out_file(args.video, suffixes=(".mp4",), force=args.force, option="--video"))
+        out.append((Path(args.video), (".mp4",), "--video"))
     if args.snapshots:
-        out.append(check_out_file(args.snapshots, suffixes=(".png",), force=args.force, option="--snapshots"))
+        out.append((Path(args.snapshots), (".png",), "--snapshots"))
     if args.export:
-        for name in EXPORT_FILES:
-            path = Path(args.out) / name
-            out.append(check_out_file(path, suffixes=(path.suffix,), force=args.force, option="--out"))
+        out += [(Path(args.out) / name, (Path(name).suffix,), "--out") for name in EXPORT_FILES]
     return out
+
+
+def check_outputs(args) -> list[Path]:
+    """The files this run will write (video, snapshots, export), each checked by `check_out_file`
+    before any work: a known extension, not a directory, a writable directory. InputError otherwise;
+    nothing is created. A file already there is refused by `claim_outputs`, not here."""
+    return [
+        check_out_file(path, suffixes=suffixes, force=True, option=option)
+        for path, suffixes, option in output_files(args)
+    ]
+
+
+def claim_outputs(args) -> contextlib.ExitStack:
+    """Claim every file this run will write (`claim_output`), before the env is built; the returned
+    stack holds the claims: `with claim_outputs(args): <the run>`. Leaving it removes each claim that
+    was not written (and the directories the claims created). OutputExistsError (one line naming the
+    file and --force) for a file already there without --force, AtomicWriteError for a failing file
+    system; the claims already taken are released then."""
+    with contextlib.ExitStack() as claims:
+        for path, _, option in output_files(args):
+            claims.enter_context(claim_output(path, force=args.force, option=option))
+        return claims.pop_all()
 
 
 class Outputs:

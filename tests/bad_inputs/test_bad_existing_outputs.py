@@ -1,8 +1,11 @@
 """Files the user already has (issue 58, class 2): every converted writer claims its output file
 before the work (create-exclusive, `lasmp.atomic.claim_output`) and refuses one that is already there
 without --force: exit code != 0, one line naming it, no traceback, its bytes unchanged; with --force it
-is replaced. Writers covered: `lasmp.eval.results_table --json`, `lasmp.eval.benchmark generate`,
-`lasmp.envs.trajectories generate` and `plot`."""
+is replaced; a run that fails after its claim leaves no empty file. Writers covered:
+`lasmp.eval.results_table --json`, `lasmp.eval.benchmark generate`, `lasmp.envs.trajectories generate`
+and `plot`, play.py (--video, --snapshots, --export onnx --out), `lasmp.algo.checkpoint policy` and
+`convert`, `lasmp.light_checkpoint SRC DST` and `lasmp.eval.breakdown --plot`; the scripts' outputs are
+in test_bad_existing_script_outputs.py."""
 
 from __future__ import annotations
 
@@ -10,16 +13,23 @@ import json
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
-from badkit import call, refused, succeeded
+from badkit import ROOT, call, refused, succeeded
 
+import lasmp.light_checkpoint as light_tool
+import lasmp.play as play
+from lasmp.algo import checkpoint as ckpt_tool
 from lasmp.atomic import OutputExistsError, claim_output
 from lasmp.envs.trajectories import cli as trj_cli
 from lasmp.eval import benchmark as bm
+from lasmp.eval import breakdown as bd
+from lasmp.eval import episodes as ep
 from lasmp.eval import results_table as rt
 from lasmp.eval.metrics import ALL_METRICS
 
 USER_DATA = b"user data\n"
+POLICY = ROOT / "resources" / "policies" / "lasmp_a1.pt"  # the shipped policy checkpoint
 
 
 def _evaluation(root: Path) -> Path:
@@ -50,11 +60,49 @@ def _trajectory_plot(root: Path, out: Path, *force: str):
     return call(trj_cli.main, ["plot", "--num", "3", "--out", str(out), *force])
 
 
+def _play_export(root: Path, out: Path, *force: str):
+    """play.py --export onnx --out DIR: `out` is DIR/policy.onnx (DIR/policy.json is claimed as well)."""
+    return call(
+        play.main,
+        ["--checkpoint", str(POLICY), "--steps", "0", "--export", "onnx", "--out", str(out.parent), *force],
+    )
+
+
+def _policy_checkpoint(root: Path, out: Path, *force: str):
+    return call(ckpt_tool.main, ["policy", str(POLICY), str(out), *force])
+
+
+def _convert(root: Path, out: Path, *force: str):
+    return call(ckpt_tool.main, ["convert", "--trust", str(POLICY), str(out), *force])
+
+
+def _light(root: Path, out: Path, *force: str):
+    return call(light_tool.main, [str(POLICY), str(out), *force])
+
+
+def _breakdown(root: Path, out: Path, *force: str):
+    """breakdown --plot of a constructed evaluation: three episodes, one a collision."""
+    pytest.importorskip("matplotlib")
+    d = root / "evaluation"
+    d.mkdir()
+    t = {c: np.zeros(3) for c in ep.COLUMNS}
+    t["episode"], t["collided"] = np.arange(3), np.array([0.0, 1.0, 0.0])
+    t["collision_time_s"] = np.array([np.nan, 2.0, np.nan])
+    t["collision_cause"] = np.array(["", "trunk", ""], dtype=object)
+    ep.write_csv(d / "episodes.csv", t)
+    return call(bd.main, [str(d), "--plot", str(out), *force])
+
+
 WRITERS = {
     "results_table --json": (_results_table, "summary.json", "--json"),
     "benchmark generate": (_benchmark, "xi.npz", "--out"),
     "trajectories generate": (_trajectories, "set.npz", "--out"),
     "trajectories plot": (_trajectory_plot, "paths.png", "--out"),
+    "play --export onnx": (_play_export, "policy.onnx", "--out"),
+    "checkpoint policy": (_policy_checkpoint, "policy.pt", "OUT"),
+    "checkpoint convert": (_convert, "converted.pt", "OUT"),
+    "light_checkpoint": (_light, "light.pt", "DST"),
+    "breakdown --plot": (_breakdown, "breakdown.png", "--plot"),
 }
 
 
@@ -79,20 +127,45 @@ def _forced(run, tmp_path: Path, out: Path):
     return run(root, out, "--force")
 
 
+def _unreadable(tmp_path: Path) -> Path:
+    """A checkpoint file the tools find only after their claim to be no checkpoint."""
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"not a checkpoint")
+    return bad
+
+
+# a run of each writer that fails after its claim (a missing or unreadable input, too large a request)
+FAILING = {
+    "results_table --json": lambda d, out: call(
+        rt.main, ["--method", "A", str(d / "missing"), "--json", str(out)]
+    ),
+    "benchmark generate": lambda d, out: call(
+        bm.main, ["generate", "--set", "validation", "--seed", str(bm.XI_EVAL.seed), "--out", str(out)]
+    ),
+    # more trajectories than memory holds: refused after the claim
+    "trajectories generate": lambda d, out: call(
+        trj_cli.main, ["generate", "--num", str(10**13), "--out", str(out)]
+    ),
+    "trajectories plot": lambda d, out: call(
+        trj_cli.main, ["plot", "--file", str(d / "none.npz"), "--out", str(out)]
+    ),
+    "play --export onnx": lambda d, out: call(
+        play.main, ["--checkpoint", str(_unreadable(d)), "--export", "onnx", "--out", str(out.parent)]
+    ),
+    "checkpoint policy": lambda d, out: call(ckpt_tool.main, ["policy", str(_unreadable(d)), str(out)]),
+    "checkpoint convert": lambda d, out: call(
+        ckpt_tool.main, ["convert", "--trust", str(_unreadable(d)), str(out)]
+    ),
+    "light_checkpoint": lambda d, out: call(light_tool.main, [str(_unreadable(d)), str(out)]),
+    "breakdown --plot": lambda d, out: call(bd.main, [str(d / "no-evaluation"), "--plot", str(out)]),
+}
+
+
 @pytest.mark.parametrize("writer", list(WRITERS))
 def test_a_writer_that_fails_after_claiming_its_file_leaves_no_empty_file_behind(writer, tmp_path):
     run, name, _ = WRITERS[writer]
     out = tmp_path / "new" / name
-    if writer == "results_table --json":
-        failed = call(rt.main, ["--method", "A", str(tmp_path / "missing"), "--json", str(out)])
-    elif writer == "benchmark generate":
-        failed = call(
-            bm.main, ["generate", "--set", "validation", "--seed", str(bm.XI_EVAL.seed), "--out", str(out)]
-        )
-    elif writer == "trajectories generate":  # more trajectories than memory holds: refused after the claim
-        failed = call(trj_cli.main, ["generate", "--num", str(10**13), "--out", str(out)])
-    else:
-        failed = call(trj_cli.main, ["plot", "--file", str(tmp_path / "none.npz"), "--out", str(out)])
+    failed = FAILING[writer](tmp_path, out)
     assert failed.code != 0 and "Traceback" not in failed.text, failed.text
     assert not out.exists() and not out.parent.exists()
 
@@ -103,6 +176,11 @@ WORK = {
     "benchmark generate": (bm, "generate"),
     "trajectories generate": (trj_cli, "_traj_from_args"),
     "trajectories plot": (trj_cli, "_traj_from_args"),
+    "play --export onnx": (play, "load_deploy_env"),
+    "checkpoint policy": (ckpt_tool, "read_checkpoint"),
+    "checkpoint convert": (ckpt_tool, "_check_format"),
+    "light_checkpoint": (light_tool, "read_checkpoint"),
+    "breakdown --plot": (bd, "read_csv"),
 }
 
 
@@ -166,3 +244,42 @@ def test_the_claim_is_taken_before_the_work_so_a_second_writer_is_refused_while_
         release.set()
         t.join(5)
     assert seen == [] and out.read_text() == "first"
+
+
+# -- the default benchmark, drawn on first use (`lasmp.eval.benchmark.load_or_make`) -------------------
+def _draw_with(monkeypatch, meanwhile):
+    """generate_set running `meanwhile()` (what another process does) before it returns its draw."""
+    draw, calls = bm.generate_set, []
+
+    def drawing(which):
+        calls.append(which)
+        if len(calls) == 1:
+            meanwhile()
+        return draw(which)
+
+    monkeypatch.setattr(bm, "generate_set", drawing)
+
+
+def _arrays_equal(a: bm.Benchmark, b: bm.Benchmark) -> bool:
+    x, y = bm._arrays(a), bm._arrays(b)
+    same = (np.array_equal(x[k], y[k], equal_nan=x[k].dtype.kind == "f") for k in x)  # NaN: padding
+    return x.keys() == y.keys() and all(same)
+
+
+def test_two_processes_drawing_the_default_benchmark_at_once_both_get_it_whole(tmp_path, monkeypatch):
+    tiny = bm.BenchmarkSet("tiny", str(tmp_path / "benchmarks" / "tiny.npz"), 3, 2, 2)
+    second = []
+    _draw_with(monkeypatch, lambda: second.append(bm.load_or_make(tiny)))
+    first = bm.load_or_make(tiny)
+    assert _arrays_equal(first, second[0]) and _arrays_equal(first, bm.load(tiny.path))
+    assert sorted(p.name for p in (tmp_path / "benchmarks").iterdir()) == ["tiny.npz"]  # no temporary
+
+
+def test_a_file_that_appears_while_the_default_benchmark_is_drawn_is_not_replaced(tmp_path, monkeypatch):
+    """The existence check at the start found nothing; the write must still not replace the file."""
+    tiny = bm.BenchmarkSet("tiny", str(tmp_path / "tiny.npz"), 3, 2, 2)
+    _draw_with(monkeypatch, lambda: Path(tiny.path).write_bytes(USER_DATA))
+    with pytest.raises(bm.BenchmarkFileError, match="tiny.npz"):  # it reads the file it found
+        bm.load_or_make(tiny)
+    assert Path(tiny.path).read_bytes() == USER_DATA
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.npz"]

@@ -185,7 +185,10 @@ def test_an_older_pickled_checkpoint_is_refused_with_the_convert_command_and_con
     assert fresh.current_learning_iteration == 2
     assert torch.equal(fresh.env.episode_length_buf, env.episode_length_buf)
     assert np.array_equal(fresh.env.sim.get_state()["state"], env.sim.get_state()["state"])
-    with pytest.raises(CheckpointError, match=r"new\.pt already exists: choose another OUT, or pass --force"):
+    with pytest.raises(
+        CheckpointError,
+        match=r"new\.pt already exists \(a full checkpoint\): choose another OUT, or pass --force",
+    ):
         convert_trusted(tmp_path / "old.pt", tmp_path / "new.pt")
 
 

@@ -11,18 +11,23 @@ of success rate, level, reward, episode length and every reward term.
 Given several runs, one figure compares them: the four main panels with one smoothed curve per run
 (`--last-iteration` cuts every run there, to compare runs at one budget), and `--json` gives each
 run's windows.
+
+`--out` is claimed before the event files are read (`lasmp.atomic.claim_output`): an existing file is
+refused without `--force`.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import atomic_write_with
+from lasmp.atomic import atomic_write_with, claim_output
+from lasmp.inputs import InputError, check_out_file
 
 MAIN_TAGS = {
     "Episode/success_rate": "success rate",
@@ -129,6 +134,7 @@ def main(argv=None) -> int:
     ap.add_argument("--labels", nargs="+", help="one name per run (default: the directories)")
     ap.add_argument("--last-iteration", type=int, help="leave out the iterations after this one")
     ap.add_argument("--out", help="write the learning-curve PNG here")
+    ap.add_argument("--force", action="store_true", help="replace an existing --out")
     ap.add_argument("--json", action="store_true", help="print the windowed means as one JSON object")
     ap.add_argument("--every", type=int, default=50, help="window, iterations")
     args = ap.parse_args(argv)
@@ -141,14 +147,23 @@ def main(argv=None) -> int:
         ap.error(f"--labels gives {len(labels)} names for {len(args.run_dirs)} runs")
     if len(set(labels)) != len(labels):
         ap.error(f"the runs need distinct labels, got {labels}")
-    try:
-        runs = {
-            name: truncated(read_scalars(d), args.last_iteration)
-            for name, d in zip(labels, args.run_dirs, strict=True)
-        }
-    except FileNotFoundError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    with contextlib.ExitStack() as claim:
+        try:
+            if args.out:
+                check_out_file(args.out, suffixes=(".png",), force=True, option="--out")
+                claim.enter_context(claim_output(args.out, force=args.force, option="--out"))
+            runs = {
+                name: truncated(read_scalars(d), args.last_iteration)
+                for name, d in zip(labels, args.run_dirs, strict=True)
+            }
+        except (FileNotFoundError, FileExistsError, InputError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        return _report(args, runs, labels)
+
+
+def _report(args, runs: dict, labels: list[str]) -> int:
+    """The figure (into `--out`, claimed by `main`) and the JSON windows."""
     if args.out:
         if len(runs) == 1:
             plot(next(iter(runs.values())), args.out, str(args.run_dirs[0]))

@@ -4,7 +4,8 @@ without --force: exit code != 0, one line naming it, no traceback, its bytes unc
 is replaced; a run that fails after its claim leaves no empty file. Writers covered:
 `lasmp.eval.results_table --json`, `lasmp.eval.benchmark generate`, `lasmp.envs.trajectories generate`
 and `plot`, play.py (--video, --snapshots, --export onnx --out), `lasmp.algo.checkpoint policy` and
-`convert`, `lasmp.light_checkpoint SRC DST` and `lasmp.eval.breakdown --plot`; the scripts' outputs are
+`convert`, `lasmp.light_checkpoint SRC DST`, `lasmp.eval.breakdown --plot`, `lasmp.eval.curves --out`
+and `lasmp.eval.real_motion generate`; the scripts' outputs are
 in test_bad_existing_script_outputs.py."""
 
 from __future__ import annotations
@@ -24,9 +25,12 @@ from lasmp.atomic import OutputExistsError, claim_output
 from lasmp.envs.trajectories import cli as trj_cli
 from lasmp.eval import benchmark as bm
 from lasmp.eval import breakdown as bd
+from lasmp.eval import curves as curves_tool
 from lasmp.eval import episodes as ep
 from lasmp.eval import results_table as rt
 from lasmp.eval.metrics import ALL_METRICS
+from lasmp.eval.real_motion import __main__ as rm_tool
+from lasmp.eval.real_motion import suite as rm_suite
 
 USER_DATA = b"user data\n"
 POLICY = ROOT / "resources" / "policies" / "lasmp_a1.pt"  # the shipped policy checkpoint
@@ -93,6 +97,22 @@ def _breakdown(root: Path, out: Path, *force: str):
     return call(bd.main, [str(d), "--plot", str(out), *force])
 
 
+def _curves(root: Path, out: Path, *force: str):
+    """curves --out of a run of two logged iterations."""
+    from torch.utils.tensorboard import SummaryWriter
+
+    run = root / "run"
+    writer = SummaryWriter(str(run))
+    for it in range(2):
+        writer.add_scalar("Train/mean_reward", float(it), it)
+    writer.close()
+    return call(curves_tool.main, [str(run), "--out", str(out), *force])
+
+
+def _real_motion(root: Path, out: Path, *force: str):
+    return call(rm_tool.main, ["generate", "--scenarios", "lift_up", "--out", str(out), *force])
+
+
 WRITERS = {
     "results_table --json": (_results_table, "summary.json", "--json"),
     "benchmark generate": (_benchmark, "xi.npz", "--out"),
@@ -103,6 +123,8 @@ WRITERS = {
     "checkpoint convert": (_convert, "converted.pt", "OUT"),
     "light_checkpoint": (_light, "light.pt", "DST"),
     "breakdown --plot": (_breakdown, "breakdown.png", "--plot"),
+    "curves --out": (_curves, "curve.png", "--out"),
+    "real_motion generate": (_real_motion, "motions.npz", "--out"),
 }
 
 
@@ -158,6 +180,10 @@ FAILING = {
     ),
     "light_checkpoint": lambda d, out: call(light_tool.main, [str(_unreadable(d)), str(out)]),
     "breakdown --plot": lambda d, out: call(bd.main, [str(d / "no-evaluation"), "--plot", str(out)]),
+    "curves --out": lambda d, out: call(curves_tool.main, [str(d / "no-run"), "--out", str(out)]),
+    "real_motion generate": lambda d, out: call(
+        rm_tool.main, ["generate", "--scenarios", "no_such_scenario", "--out", str(out)]
+    ),
 }
 
 
@@ -181,6 +207,8 @@ WORK = {
     "checkpoint convert": (ckpt_tool, "_check_format"),
     "light_checkpoint": (light_tool, "read_checkpoint"),
     "breakdown --plot": (bd, "read_csv"),
+    "curves --out": (curves_tool, "read_scalars"),
+    "real_motion generate": (rm_suite, "build_motions"),
 }
 
 

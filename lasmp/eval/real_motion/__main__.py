@@ -1,17 +1,20 @@
 """``python -m lasmp.eval.real_motion {generate,plot,stats,table}``: the suite's file, figures and numbers.
 
-The files ``generate`` and ``plot`` write are checked before any motion is built (extension,
-directory, and no existing file replaced without ``--force``); a write that fails is one line
-naming the file (exit 1).
+The files ``generate`` and ``plot`` write are checked (extension, directory) and claimed
+(`lasmp.atomic.claim_output`: an existing file is refused without ``--force``, with no window between a
+check and the write) before any motion is built; a claim the run did not write is removed; a write
+that fails is one line naming the file (exit 1).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
 
+from lasmp.atomic import claim_output
 from lasmp.envs import trajectories as trj
 from lasmp.eval.real_motion import suite as rm
 from lasmp.eval.real_motion.plots import plot_all
@@ -45,23 +48,31 @@ def main(argv=None) -> int:
             print(f"error: {err}", file=sys.stderr)
             return 2
         return 0
-    try:  # the files it writes, checked before the motions are built (seconds of work)
-        if args.cmd == "generate":
-            check_out_file(args.out, suffixes=(".npz",), force=args.force, option="--out")
-        elif args.cmd == "plot":
-            for name in args.scenarios or rm.SCENARIOS:  # plot_all's file names
-                path = args.out / f"{name}.png"
-                check_out_file(path, suffixes=(".png",), force=args.force, option="--out")
-        motions = rm.build_motions(args.scenarios)
-    except ValueError as err:  # InputError, an unknown scenario
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted: nothing written", file=sys.stderr)
-        return 130
-    if args.cmd == "stats":
-        print_stats(motions, args.json)
-        return 0
+    with contextlib.ExitStack() as claims:
+        try:  # the files it writes, checked and claimed before the motions are built (seconds of work)
+            if args.cmd == "generate":
+                check_out_file(args.out, suffixes=(".npz",), force=True, option="--out")
+                claims.enter_context(claim_output(args.out, force=args.force, option="--out"))
+            elif args.cmd == "plot":
+                for name in args.scenarios or rm.SCENARIOS:  # plot_all's file names
+                    path = args.out / f"{name}.png"
+                    check_out_file(path, suffixes=(".png",), force=True, option="--out")
+                    claims.enter_context(claim_output(path, force=args.force, option="--out"))
+            motions = rm.build_motions(args.scenarios)
+        except (ValueError, FileExistsError) as err:  # InputError, an unknown scenario, a file there
+            print(f"error: {err}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print("interrupted: nothing written", file=sys.stderr)
+            return 130
+        if args.cmd == "stats":
+            print_stats(motions, args.json)
+            return 0
+        return _write(args, motions)
+
+
+def _write(args, motions) -> int:
+    """generate's file or plot's figures, into the claims `main` holds."""
     try:
         if args.cmd == "generate":
             trj.save(args.out, to_trajectories(motions))  # atomic; it makes the directory

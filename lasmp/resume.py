@@ -163,21 +163,27 @@ def check_iteration(data: dict) -> None:
         )
 
 
+def check_state(data: dict, consequence: str) -> None:
+    """Refuse a checkpoint a training cannot go on from (a resume or a warm start): its stored
+    iteration (`check_iteration`), a non-finite network, an insane entry (`insane_entry`);
+    `consequence` ends the message."""
+    path = data["path"]
+    check_iteration(data)
+    try:
+        check_finite({k: data[k] for k in data if k.endswith("state_dict")}, f"checkpoint {path}")
+    except FloatingPointError as err:
+        raise CheckpointError(f"{err}: {consequence}") from None
+    insane = insane_entry(data)
+    if insane:
+        raise CheckpointError(f"checkpoint {path}: {insane}: {consequence}")
+
+
 def check_resume(cfg: TrainCfg, data: dict) -> dict[str, tuple]:
     """Refuse a resume that cannot go as `cfg` says, before anything is built or written; return
     the keys it changes from the checkpoint's config, {key: (saved, now)}."""
     path = data["path"]
     refuse_policy_only(data)
-    check_iteration(data)
-    try:
-        check_finite({k: data[k] for k in data if k.endswith("state_dict")}, f"checkpoint {path}")
-    except FloatingPointError as err:
-        raise CheckpointError(f"{err}: it cannot be resumed (give an earlier checkpoint)") from None
-    insane = insane_entry(data)
-    if insane:
-        raise CheckpointError(
-            f"checkpoint {path}: {insane}: it cannot be resumed (give an earlier checkpoint)"
-        )
+    check_state(data, "it cannot be resumed (give an earlier checkpoint)")
     saved, now = flatten(data["config"]), flatten(to_plain(cfg))
     changed = {
         k: (saved[k], now[k])

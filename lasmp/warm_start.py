@@ -25,9 +25,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from lasmp.algo.checkpoint import CheckpointError, check_finite, learning_rates, read_checkpoint
+from lasmp.algo.checkpoint import learning_rates, read_checkpoint
 from lasmp.config import ConfigError
-from lasmp.resume import check_iteration, insane_entry, resumed_cfg
+from lasmp.resume import check_state, resumed_cfg
 from lasmp.train_cfg import TrainCfg
 
 if TYPE_CHECKING:
@@ -52,15 +52,7 @@ class WarmStart:
                 "exactly from its full checkpoint, warm_start starts a new run from a checkpoint's weights; give one"
             )
         data = read_checkpoint(cfg.warm_start, "cpu")
-        check_iteration(data)
-        path = data["path"]
-        try:
-            check_finite({k: data[k] for k in data if k.endswith("state_dict")}, f"checkpoint {path}")
-        except FloatingPointError as err:
-            raise CheckpointError(f"{err}: no run can start from it") from None
-        insane = insane_entry(data)
-        if insane:
-            raise CheckpointError(f"checkpoint {path}: {insane}: no run can start from it")
+        check_state(data, "no run can start from it")
         return cls(resumed_cfg(cfg, data, explicit), data)
 
     @property

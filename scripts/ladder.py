@@ -293,8 +293,9 @@ def light_copy(src: Path, dst: Path) -> Path:
 
 
 def collect(name: str, seed: int, force: bool = False) -> Path:
-    """results/ladder/<rung>/seed<k>/: the run's validation.json, config.yaml, commands and its final
-    and best policies in the light form (under 1 MB each)."""
+    """results/ladder/<rung>/seed<k>/: the run's validation.json, config.yaml, commands and its best
+    policy by validation in the light form (under 1 MB: a run adds no more to the tree). The final
+    policy's figures are validation.json's last entry; the policy itself stays in the run directory."""
     rung = _rung(name)
     run_dir = ROOT / RUNS / name / f"seed{seed}"
     last = _last_saved(run_dir)
@@ -310,7 +311,6 @@ def collect(name: str, seed: int, force: bool = False) -> Path:
     for src in ("validation.json", "config.yaml"):
         shutil.copyfile(run_dir / src, dest / src)
     shutil.copyfile(run_dir.parent / f"seed{seed}.commands", dest / "commands")
-    light_copy(run_dir / f"model_{last}.pt", dest / "policy_final.pt")
     light_copy(run_dir / "policy_best.pt", dest / "policy_best.pt")
     shutil.rmtree(dest / "in_progress", ignore_errors=True)  # the finished run's files replace the snapshot
     return dest

@@ -8,14 +8,20 @@ bfloat16 learner, `lasmp_float32` under float32, the learner of the screening ru
 AVX-512), the height violation and the world tilt (rotation deviation) there, the stance, and
 the mirror evaluation on the first 1,024 (mirror_1024.json) where it ran, and the collision rate where
 the policies fail most (docs/screening.md#where-the-policies-fail): in the episodes whose trunk CoM is
-shifted 0.2 m or more sideways, and in those of N >= 11 waypoints (from episodes_2000.csv.gz).
+shifted 0.2 m or more sideways, and in those of N >= 11 waypoints (from episodes_2000.csv.gz, or, where
+the records are no longer in the tree, from hard_cases_2000.json, which `--store-hard-cases` wrote from
+them with their digest).
+
+    python scripts/screen_table.py [--store-hard-cases]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
+from lasmp.atomic import atomic_open
 from lasmp.eval import episodes as ep
 from lasmp.eval import metrics
 from lasmp.inputs import InputError, read_json
@@ -42,16 +48,48 @@ def hard_cases(episodes: dict) -> tuple[float, float]:
     return float(collided[wide].mean()), float(collided[many].mean())
 
 
+RECORDS_2000 = "episodes_2000.csv.gz"
+HARD_CASES_FILE = "hard_cases_2000.json"  # the two hard-case rates, kept when the records leave the tree
+
+
+def store_hard_cases(seed_dir: Path) -> Path:
+    """Write `seed_dir`'s hard-case rates, computed from its records, with the records' digest."""
+    records = seed_dir / RECORDS_2000
+    wide, many = hard_cases(ep.read_csv(records))
+    out = seed_dir / HARD_CASES_FILE
+    entry = {
+        "collision_com_y_ge_0.2m": wide,
+        "collision_n_waypoints_ge_11": many,
+        "records": RECORDS_2000,
+        "records_digest": ep.file_digest(records)["sha256"],
+    }
+    with atomic_open(out, "w") as f:
+        json.dump(entry, f, indent=1)
+        f.write("\n")
+    return out
+
+
+def stored_hard_cases(seed_dir: Path) -> tuple[float, float]:
+    """The hard cases from the records where they are, else from what `store_hard_cases` kept."""
+    if (seed_dir / RECORDS_2000).exists():
+        return hard_cases(ep.read_csv(seed_dir / RECORDS_2000))
+    kept = read_json(seed_dir / HARD_CASES_FILE)
+    return kept["collision_com_y_ge_0.2m"], kept["collision_n_waypoints_ge_11"]
+
+
 def row(cand: str, seed_dir: Path) -> str | None:
     m2000 = seed_dir / "metrics_2000.json"
     if m2000.exists():
         r = read_json(m2000)
         summary, gait = r["metrics"], r.get("gait") or {}
-        wide, many = hard_cases(ep.read_csv(seed_dir / "episodes_2000.csv.gz"))
+        wide, many = stored_hard_cases(seed_dir)
     elif cand not in BASELINES:  # trained only part of the way (a policy checkpoint kept): no row yet
         return None
-    else:  # the paper's recipe: the study's run of this seed
-        rows = ep.read_csv(ep.episodes_path(BASELINES[cand] / seed_dir.name))
+    else:  # the paper's recipe: the study's run of this seed, from its records (derived data)
+        records = ep.episodes_path(BASELINES[cand] / seed_dir.name)
+        if not records.exists():
+            return None
+        rows = ep.read_csv(records)
         first = rows["episode"] < 2000
         # as evaluate.py summarizes its 2,000 episodes: the mean over 10 consecutive batches
         per_episode = {
@@ -80,10 +118,18 @@ def row(cand: str, seed_dir: Path) -> str | None:
 
 def main(argv: list[str] | None = None) -> None:
     """Print the table; a record that is missing or unreadable ends it with one line naming the file."""
-    argparse.ArgumentParser(
+    parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    ).parse_args(argv)
+    )
+    parser.add_argument(
+        "--store-hard-cases", action="store_true", help=f"write {HARD_CASES_FILE} beside every {RECORDS_2000}"
+    )
+    args = parser.parse_args(argv)
     try:
+        if args.store_hard_cases:
+            for records in sorted(SCREEN.glob(f"*/seed*/{RECORDS_2000}")):
+                print(f"wrote {store_hard_cases(records.parent)}")
+            return
         print_table()
     except (ep.EpisodesFileError, InputError) as err:  # the one line that names the file (and how to fix it)
         raise SystemExit(f"error: {err}") from None
@@ -97,6 +143,7 @@ def print_table() -> None:
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     screened = {p.name: p for p in SCREEN.iterdir() if p.is_dir()}
+    missing = []  # the baselines' seed directories whose records are not in the tree
     for cand in sorted({*screened, *BASELINES}):
         # a baseline's seeds: its mirror evaluation's directories where it has them, else the study's
         source = screened.get(cand, BASELINES.get(cand))
@@ -106,6 +153,11 @@ def print_table() -> None:
             line = row(cand, seed_dir)
             if line:
                 print(line)
+            elif cand in BASELINES:
+                missing.append(BASELINES[cand] / seed_dir.name)
+    if missing:
+        dirs = " ".join(str(d.relative_to(ROOT)) for d in missing)
+        print(f"\nThe paper's recipe's rows need the study's records: python -m lasmp.eval.regenerate {dirs}")
 
 
 if __name__ == "__main__":

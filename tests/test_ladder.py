@@ -154,11 +154,10 @@ def test_a_running_run_leaves_its_newest_policy_light_with_its_commands_and_an_u
         "commands",
         "config.yaml",
         "policy_best.pt",
-        "policy_final.pt",
         "validation.json",
     ]
-    final, best = (torch.load(out / f, weights_only=True) for f in ("policy_final.pt", "policy_best.pt"))
-    assert (final["kind"], final["iter"], best["kind"]) == ("actor", 1, "actor")
+    best = torch.load(out / "policy_best.pt", weights_only=True)
+    assert best["kind"] == "actor" and sum(f.stat().st_size for f in out.iterdir()) < 1e6  # a run adds < 1 MB
     assert [r["iteration"] for r in ladder.read_curve(out / "validation.json")["history"]] == [0, 1]
     with pytest.raises(SystemExit, match="holds a collected run; give --force"):
         ladder.collect("base", 10)

@@ -35,6 +35,16 @@ def tracked(*folders: str) -> list[Path]:
     return [ROOT / n for n in names if n and (ROOT / n).is_file()]
 
 
+MAX_TRACKED_BYTES = 80 * 10**6  # a light clone: code, docs, the shipped policy, each run's records
+
+
+def test_the_tracked_tree_weighs_at_most_80_mb():
+    """`git ls-files | xargs du -cb`: what a clone's work tree holds. A run adds its light policy (under
+    1 MB); per-episode records are derived data (`python -m lasmp.eval.regenerate`)."""
+    total = sum(p.stat().st_size for p in tracked("."))
+    assert total <= MAX_TRACKED_BYTES, f"the tracked tree weighs {total / 1e6:.1f} MB, over 80 MB"
+
+
 def test_no_tracked_file_under_results_exceeds_5_mib():
     files = tracked("results")
     assert files, "git tracks nothing under results/"

@@ -59,3 +59,17 @@ def test_a_truncated_metrics_file_is_named_in_one_line_not_a_json_error(tmp_path
         table.main([])
     assert str(stop.value) == f"error: {metrics}: truncated: the file ends before its JSON does"
     assert capsys.readouterr().out.startswith("| candidate | seed |")  # the header, then the error
+
+
+def test_a_candidate_s_row_reads_the_same_from_its_stored_hard_cases_once_its_records_are_gone(tmp_path):
+    table = load_script("scripts/screen_table.py")
+    seed_dir = tmp_path / "seed0"
+    seed_dir.mkdir()
+    ep.write_csv(seed_dir / table.RECORDS_2000, _records())
+    m = {k: {"mean": 0.1} for k in ("collision_rate", "height_violation_rate", "rotation_deviation_rad")}
+    (seed_dir / "metrics_2000.json").write_text(json.dumps({"metrics": m}))
+    from_records = table.row("candidate", seed_dir)
+    stored = json.loads(table.store_hard_cases(seed_dir).read_text())
+    assert stored["records_digest"] == ep.file_digest(seed_dir / table.RECORDS_2000)["sha256"]
+    (seed_dir / table.RECORDS_2000).unlink()
+    assert table.row("candidate", seed_dir) == from_records and from_records.endswith("| 0.200 | 0.500 |")

@@ -1,5 +1,6 @@
 """A run's learning curve in the benchmark's terms: the collision rate on Xi_eval's first episodes at
-several budgets, each with the training minutes it took (issue 41: choose LAS-MP+'s budget from it).
+several budgets, each with the training minutes it took (LAS-MP+'s budget is chosen from it:
+docs/screening.md#las-mps-budget).
 
     python scripts/learning_curve.py RUN_DIR --at 150 300 449 [999] --out DIR [--episodes 2000]
 

@@ -21,10 +21,10 @@ the study with its own exit status and message. Evaluations go to results/study/
 (`curves_<N>.json`). Every run has the same budget: 450 iterations x 1,024 envs (the cpu preset), in
 the default configuration.
 
-LAS-MP's seeds 0, 1 and 2 come first, then seed 0's continuation to 1,000 iterations (the shipped
-policy), then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000 iterations: all
-under the paper's recipe (`recipe=paper`). Then LAS-MP+ (`recipe=lasmp_plus`, the default since
-issue 41) and its four ablations under its recipe, at one budget chosen from LAS-MP+'s learning curve
+LAS-MP's seeds 0, 1 and 2 come first, then seed 0's continuation to 1,000 iterations (the policy
+shipped before LAS-MP+), then the other methods seed by seed, then LAS-MP seeds 1 and 2 to 1,000 iterations: all
+under the paper's recipe (`recipe=paper`). Then LAS-MP+ (`recipe=lasmp_plus`, the default recipe)
+and its four ablations under its recipe, at one budget chosen from LAS-MP+'s learning curve
 (docs/screening.md); each of these runs is also played with the mirror twins of Xi_eval's first
 1,024 episodes (results/study/<method>/seed<k>/mirror/). Last, LAS-MP+ once more on seeds 3, 4 and 5,
 which no screening run saw (its seeds 0 and 1 are the runs that chose it): a row of its own, free of
@@ -76,7 +76,7 @@ FRESH_SEEDS = (3, 4, 5)
 FRESH_ROW = f"LAS-MP+, seeds {FRESH_SEEDS[0]}-{FRESH_SEEDS[-1]}"
 # method -> train.py overrides (the ablations of docs/method.md are policy groups; R-S its own task).
 # LAS-MP and its ablations under the paper's recipe (recipe=paper), as the study first ran them;
-# LAS-MP+ (the default recipe, ours) and the same four ablations under it (issue 41)
+# LAS-MP+ (the default recipe, ours) and the same four ablations under it
 PAPER, PLUS = "recipe=paper", "recipe=lasmp_plus"
 ABLATIONS = (
     "no_alignment_command",
@@ -125,7 +125,7 @@ STAND_STILL = RESULTS / "stand_still" / "seed0"
 TABLE_ROWS = {
     "Stand Still (a = 0)": ("Stand Still",),
     "LAS-MP, 450 iterations": ("LAS-MP",),
-    "LAS-MP, 1,000 iterations (shipped before issue 41)": ("LAS-MP (1,000 it.)",),
+    "LAS-MP, 1,000 iterations (shipped before LAS-MP+)": ("LAS-MP (1,000 it.)",),
     "LAS-MP, centre reward reading": ("LAS-MP, centre reward",),
     **{name: (name,) for name in ABLATION_NAMES.values()},
     "R-S (its estimates; the true x_exp)": ("R-S", "R-S (oracle)"),

@@ -1,4 +1,4 @@
-"""Every script under scripts/ is a tool as the entry points are (issue 58): `--help` prints its usage,
+"""Every script under scripts/ is a tool as the entry points are: `--help` prints its usage,
 an unknown option is refused by argparse in one line, and a JSON file it reads that is missing or cut
 short is named in one line (lasmp.inputs.read_json), never a traceback. Each script runs as a user
 runs it: a subprocess of the venv's python, from the repository root."""

@@ -1,7 +1,7 @@
 """train.py on a real disk that is full or turns read-only: small tmpfs mounts (the `tmpfs` fixture,
 conftest.py), not a patched `torch.save`, since a real disk fails where a patch does not (inside
 torch's zip writer, in TensorBoard's writer thread, in the run lock's release). Each case: one line
-naming the file, no traceback, and nothing left that would block the rerun (issue 42: F01-F03)."""
+naming the file, no traceback, and nothing left that would block the rerun."""
 
 from __future__ import annotations
 

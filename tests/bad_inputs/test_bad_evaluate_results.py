@@ -1,4 +1,4 @@
-"""evaluate.py's results, whole and owned (issue 42): two evaluations into one --out, a disk that
+"""evaluate.py's results, whole and owned: two evaluations into one --out, a disk that
 fills (a real small tmpfs), Ctrl-C, numeric options and seeds, and a record with a repeated episode."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Files the user already has (issue 58, class 2): every converted writer claims its output file
+"""Files the user already has: every converted writer claims its output file
 before the work (create-exclusive, `lasmp.atomic.claim_output`) and refuses one that is already there
 without --force: exit code != 0, one line naming it, no traceback, its bytes unchanged; with --force it
 is replaced; a run that fails after its claim leaves no empty file. Writers covered:
@@ -239,7 +239,7 @@ def test_a_second_writer_started_while_the_first_works_is_refused_not_overwritte
 
 
 def test_results_table_json_refuses_to_replace_the_users_file_as_in_the_issue(tmp_path):
-    """The issue's example: `python -m lasmp.eval.results_table --json FILE` replaced FILE silently."""
+    """Unclaimed, `python -m lasmp.eval.results_table --json FILE` would replace FILE silently."""
     out = tmp_path / "FILE.json"
     out.write_bytes(USER_DATA)
     refused(

@@ -1,4 +1,4 @@
-"""Files the user already has (issue 58, class 2), the scripts' share: each script that writes a file
+"""Files the user already has, the scripts' share: each script that writes a file
 the user names (--out, --json) claims it before its minutes of play (`lasmp.atomic.claim_output`), so
 an existing file is refused without --force (exit code != 0, one line naming it, no traceback, its
 bytes unchanged) and replaced with it; a Ctrl-C during the play leaves no empty file. The play itself

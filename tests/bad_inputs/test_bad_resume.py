@@ -155,7 +155,7 @@ CHECKPOINT_CASES = {
     "a running state lacking a buffer": (_edit(_run_state_lacking), "running state"),
     "a corrupt random state": (_edit(_bad_rng), "random state"),
     "a config this code cannot rebuild": (_edit(_config_unknown_key), "bogus"),
-    # a state a training cannot go on from: refused naming the entry, not after a step (issue 42)
+    # a state a training cannot go on from: refused naming the entry, not after a step
     "a NaN learning rate in the optimizer (C_nan_lr)": (
         _edit(_nan_learning_rate),
         r"optimizer_state_dict\.param_groups\[0\]\.lr is not finite",

@@ -1,5 +1,5 @@
 """train.py and signals at every moment: a SIGTERM in the middle of a long rollout, a second Ctrl-C
-while a checkpoint is being written (issue 58)."""
+while a checkpoint is being written."""
 
 from __future__ import annotations
 

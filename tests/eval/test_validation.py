@@ -41,7 +41,8 @@ def test_the_validation_benchmark_is_drawn_as_xi_eval_is_from_a_seed_of_its_own(
     assert not np.array_equal(val.trajectories.n_waypoints, xi.trajectories.n_waypoints)
     assert set(np.unique(val.trajectories.n_waypoints)) == set(range(4, 17))  # the testing split's N
     stats = bm.describe(a, val)["statistics"]["overall"]
-    # the testing split's calibration target (SPEC §4): within 10 % of 7.12 m and 0.69 m/s, as Xi_eval
+    # the testing split's calibration target (the paper's testing set, docs/trajectories.md#why-degree-10):
+    # within 10 % of 7.12 m and 0.69 m/s, as Xi_eval
     assert abs(stats["mean_path_length_m"] / 7.12 - 1) < 0.1 and abs(stats["mean_speed_mps"] / 0.69 - 1) < 0.1
 
 

@@ -3,7 +3,7 @@
 cd "$(dirname "$0")/.."
 . .venv/bin/activate
 # an evaluation's record $1 (a path without .csv/.csv.gz) to $2, gzip-compressed: evaluate.py writes
-# the .csv.gz itself since issue 43, the plain .csv before
+# the .csv.gz itself; a plain .csv (an evaluation by an older evaluate.py) is compressed here
 record() { if [ -e $1.csv.gz ]; then cp $1.csv.gz $2; else gzip -n -9 -c $1.csv > $2; fi; }
 for d in runs/screen/*/seed*.done; do
   cand=$(basename $(dirname $d)); s=$(basename $d .done); src=runs/screen/$cand/$s; out=results/screen/$cand/$s

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Screening queue (issue 41): each line of runs/screen_queue.txt is "<candidate> <seed> <overrides...>".
+# Screening queue for the LAS-MP+ candidates (docs/screening.md): each line of runs/screen_queue.txt is "<candidate> <seed> <overrides...>".
 # Trains 450 iterations with the learner PRECISION (default bfloat16; float32 on a CPU without
 # AVX-512 bf16, where bfloat16 is 20x slower), then evaluates on Xi_eval's first 2,000 episodes and
 # with the mirror evaluation on the first 1,024. Skips lines already done.

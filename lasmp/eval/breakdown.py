@@ -1,6 +1,7 @@
 """Where a method fails: the collision rate of an evaluation broken down by episode, from its record.
 
     python -m lasmp.eval.breakdown DIR [--plot out.png [--force]] [--late-s 8] [--episodes K] [--row LABEL]
+                                       [--probe-from DIR2] [--baseline DIR3]
 
 Reads DIR/episodes.csv.gz (written by evaluate.py; DIR/episodes.csv in evaluations made before it
 compressed them) and prints, as Markdown tables, the collision rate (with the episode count behind
@@ -20,6 +21,9 @@ compares with one of the first K (episode k is the same trajectory and robot in 
 with the probe, e.g. Stand Still's, serves every run made with `--no-platform-probe`): the probe
 replays only the platform and the episode's robot's foot friction, so it is the same for every
 controller; the two files must hold the same episodes on the same robots.
+The state at each failure (lasmp/eval/failure.py: the feet on the deck, the deck's and the trunk's
+tilt at the collision step) is tabled where the record holds it. `--baseline DIR3` pairs the episodes
+with another evaluation of them (Stand Still's) and counts the failures in the episodes it survives.
 `--row LABEL` prints instead one row of docs/evaluation.md's table of runs (it needs the probe's
 columns): collisions, those in forced episodes, in the tilt tail (with their share), the rate below
 and in the tail, after --late-s (with their share), and the three commonest causes.
@@ -35,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from lasmp.atomic import AtomicWriteError, claim_output
+from lasmp.eval import failure
 from lasmp.eval.episodes import PROBE_COLUMNS, EpisodesFileError, episodes_path, read_csv
 from lasmp.inputs import InputError, check_out_file, float_arg, int_arg
 
@@ -121,6 +126,7 @@ def breakdown(t: dict[str, np.ndarray], late_s: float = 8.0) -> dict:
     out["by_cause"] = [(k, causes.count(k)) for k in kinds]
     times = t["collision_time_s"][collided]
     out["late"] = {"after_s": late_s, "collisions": int((times > late_s).sum())}
+    out["at_failure"] = failure.state_tables(t)
     return out
 
 
@@ -183,6 +189,7 @@ def markdown(b: dict) -> str:
         f"Failures after {late['after_s']:g} s: {late['collisions']} of {b['collisions']} "
         f"({_share(late['collisions'], b['collisions'])}).",
     ]
+    lines += failure.markdown(b["at_failure"], b.get("against_baseline"), b.get("baseline_name", ""))
     return "\n".join(lines)
 
 
@@ -269,6 +276,9 @@ def main(argv=None) -> int:
     )
     p.add_argument("--probe-from", type=Path, metavar="DIR2", help="the probe's columns from DIR2's episodes")
     p.add_argument(
+        "--baseline", type=Path, metavar="DIR3", help="count the failures in the episodes DIR3's run survives"
+    )
+    p.add_argument(
         "--row", metavar="LABEL", help="print only docs/evaluation.md's row of this run, named LABEL"
     )
     args = p.parse_args(argv)
@@ -291,10 +301,16 @@ def _main(args, claims: contextlib.ExitStack) -> int:
         if args.probe_from is not None:
             other = episodes_path(args.probe_from)
             table = _naming(other, with_probe_from, table, read_csv(other))
+        paired = None
+        if args.baseline is not None:
+            base = episodes_path(args.baseline)
+            paired = _naming(base, failure.against_baseline, table, read_csv(base))
     except (EpisodesFileError, InputError, OSError) as err:  # OSError: the plot already there, ...
         print(f"error: {err}", file=sys.stderr)
         return 2
     b = breakdown(table, args.late_s)
+    if paired is not None:
+        b |= {"against_baseline": paired, "baseline_name": str(args.baseline)}
     if args.row is not None:
         try:
             print(summary_row(b, args.row))

@@ -25,6 +25,7 @@ import numpy as np
 
 from lasmp.atomic import atomic_open
 from lasmp.envs.moving_platform.scene import PLATFORM_JOINTS
+from lasmp.eval.failure import FAILURE_KEYS
 from lasmp.eval.gait import GAIT_KEYS
 from lasmp.eval.metrics import EXTRA_METRICS, METRICS
 
@@ -59,8 +60,9 @@ COLUMNS = (
     *PROBE_COLUMNS,
 )
 TEXT_COLUMNS = ("collision_cause",)
-# written since the stance was measured (lasmp/eval/gait.py); read where present, NaN in older files
-OPTIONAL_COLUMNS = GAIT_KEYS
+# written since the stance (lasmp/eval/gait.py) and the state at failure (lasmp/eval/failure.py) were
+# measured; read where present, NaN in older files
+OPTIONAL_COLUMNS = (*GAIT_KEYS, *FAILURE_KEYS)
 WRITTEN_COLUMNS = (*COLUMNS, *OPTIONAL_COLUMNS)
 
 
@@ -124,10 +126,11 @@ def table_digest(table: dict[str, np.ndarray], columns: tuple[str, ...] = WRITTE
     return _digest(list(columns), {c: [_cell(v) for v in table[c]] for c in columns})
 
 
-def file_digest(path: str | Path) -> dict:
+def file_digest(path: str | Path, columns: list[str] | None = None) -> dict:
     """`table_digest` of an episodes file (plain or gzip-compressed CSV), over the columns its header
-    names: each cell parsed and written again as the CSV writer writes it (a number in full precision,
-    text as it is), so that it equals the digest of the records it was written from."""
+    names (or `columns`, in that order: a digest taken before a column was added covers the others):
+    each cell parsed and written again as the CSV writer writes it (a number in full precision, text as
+    it is), so that it equals the digest of the records it was written from."""
     path = Path(path)
     opener = gzip.open if _is_gzip(path) else open
     try:
@@ -140,7 +143,13 @@ def file_digest(path: str | Path) -> dict:
     header, body = rows[0], rows[1:]
     if any(len(row) != len(header) for row in body):
         raise EpisodesFileError(f"{path}: a row's cells do not match the header's {len(header)}")
-    return _digest(header, {c: [_canonical(row[j]) for row in body] for j, c in enumerate(header)})
+    cells = {c: [_canonical(row[j]) for row in body] for j, c in enumerate(header)}
+    if columns is not None:
+        lacking = [c for c in columns if c not in cells]
+        if lacking:
+            raise EpisodesFileError(f"{path}: no column {lacking[0]!r}")
+        return _digest(list(columns), {c: cells[c] for c in columns})
+    return _digest(header, cells)
 
 
 def _canonical(cell: str) -> str:
@@ -194,6 +203,7 @@ def episode_table(
         "steps": episodes["steps"],
         **{m: episodes[m] for m in PER_EPISODE_METRICS},
         **{g: episodes[g] for g in GAIT_KEYS},
+        **{f: episodes[f] for f in FAILURE_KEYS if f in episodes},
     }
     for key in PROBE_COLUMNS:
         t[key] = np.full(k, np.nan) if probe is None else probe[key]

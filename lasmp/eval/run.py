@@ -22,6 +22,7 @@ import torch
 
 from lasmp.envs.moving_platform.domain_rand import Intrinsics
 from lasmp.envs.robot import as_numpy, take_columns
+from lasmp.eval.failure import FAILURE_KEYS, failure_state
 from lasmp.eval.gait import GAIT_KEYS, GaitTracker
 from lasmp.eval.metrics import EpisodeMetrics, TrunkPose, metric_h_des_p_m
 from lasmp.robots import a1
@@ -73,6 +74,7 @@ EPISODE_KEYS = (
     "power_w",
     "collision_time_s",
     *GAIT_KEYS,
+    *FAILURE_KEYS,
 )
 
 
@@ -174,6 +176,12 @@ def run_benchmark(
                     )
                     causes = cause_names(captured["contact"][ids], captured["fell"][ids])
                     episodes["collision_cause"][rows] = np.where(collided, causes, "")
+                    pose = captured["pose"]
+                    at_failure = failure_state(
+                        np.asarray(captured["feet"])[ids] > 0, pose.r_wp[ids], pose.r_wb[ids], collided
+                    )
+                    for key, value in at_failure.items():
+                        episodes[key][rows] = value
                     done_count += len(ids)
                 restarted = np.flatnonzero(done)
                 if len(restarted):

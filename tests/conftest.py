@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
 
@@ -60,3 +61,59 @@ def default_signal_handlers():
     yield
     for s, handler in saved.items():
         signal.signal(s, handler if handler is not None else signal.SIG_DFL)
+
+
+@pytest.fixture
+def study(tmp_path, monkeypatch):
+    """scripts/study.py as a module on a constructed tree under tmp_path: the commands it would run
+    recorded in `study.ran` (not run), the real ones kept as `real_execute` and `real_check_learner`
+    (tests/test_study_*.py)."""
+    from testkit import load_script
+
+    mod = load_script("scripts/study.py")
+    monkeypatch.setattr(mod, "ROOT", tmp_path)
+    monkeypatch.setattr(mod, "RUNS", tmp_path / "runs" / "study")
+    monkeypatch.setattr(mod, "RESULTS", tmp_path / "results" / "study")
+    monkeypatch.setattr(mod, "FIRST_PASS", tmp_path / "results" / "study" / "entropy_0.01")
+    monkeypatch.setattr(mod, "STAND_STILL", tmp_path / "results" / "study" / "stand_still" / "seed0")
+    ran = []
+    mod.real_execute = mod.execute
+    monkeypatch.setattr(mod, "execute", lambda cmd, log: ran.append(cmd[1:]))
+    monkeypatch.setattr(mod, "record_run", lambda *a: None)
+    mod.real_check_learner = mod.check_learner
+    monkeypatch.setattr(mod, "check_learner", lambda cpuinfo=None: None)  # CI's CPU may lack bfloat16
+    mod.ran = ran
+    return mod
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    """One tiny trained run (model_0.pt) with a non-default policy shape (tests/test_play_*.py)."""
+    from omegaconf import OmegaConf
+    from testkit import PLAY_LATENT_DIM
+
+    from lasmp.train import train
+
+    log_dir = tmp_path_factory.mktemp("play_run")
+    cfg = {
+        "env": {"num_envs": 4},
+        "runner": {"max_iterations": 1, "log_dir": str(log_dir)},
+        "policy": {
+            "latent_dim": PLAY_LATENT_DIM,
+            "actor_hidden_dims": [32, 32, 32],
+            "critic_hidden_dims": [32, 32],
+        },
+        "algo": {"num_mini_batches": 2, "num_learning_epochs": 1},
+        "torch_threads": 1,
+    }
+    train(OmegaConf.create(cfg))
+    assert list(log_dir.glob("model_*.pt"))
+    return log_dir
+
+
+@pytest.fixture(scope="module")
+def loaded(run_dir):
+    """run_dir's checkpoint loaded for deployment: (env of 1 env, policy, config, checkpoint), seed 3."""
+    from lasmp.deploy import load_deploy_env
+
+    return load_deploy_env(run_dir, num_envs=1, seed=3)

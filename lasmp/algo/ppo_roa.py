@@ -87,7 +87,7 @@ class RoaRolloutStorage(RolloutStorage):
     def mini_batch_generator(self, num_mini_batches: int, num_epochs: int = 8):
         """rsl_rl's mini-batches; in a PPO pass each gathered from the rollout once. rsl_rl's
         generator draws one permutation for all epochs, so every epoch visits the same mini-batches
-        in the same order (`tests/test_train.py` checks that of the installed rsl_rl): the same
+        in the same order (`tests/test_train_mini_batches.py` checks that of the installed rsl_rl): the same
         values, gathered once. A fresh `Batch` per epoch, since PPO may reassign a batch's fields
         (per-mini-batch advantage normalization)."""
         if not self._ppo_pass:

@@ -2,8 +2,8 @@
 hold on a tilted platform below atan(mu) and slide above it whichever way the slope faces, and
 MuJoCo's pyramidal cone, which does not, fails the same check.
 
-A coarse, fixed-tilt form of bench/friction_cone.py's protocol (that script's world and helpers,
-loaded from its file): settle on the level platform, tilt to a fixed angle in 2 s, hold 2 s. A run
+A coarse, fixed-tilt form of bench/friction_cone.py's protocol (its world and helpers, from
+bench/slide_protocol.py): settle on the level platform, tilt to a fixed angle in 2 s, hold 2 s. A run
 "holds" when no tracked point (the block's body, the robot's four feet) slips 2 mm along the surface
 in the hold's last second (the block: nor 1 cm over the whole hold), and "slides" when every one
 slips more than 5 cm over the hold.
@@ -18,7 +18,7 @@ from testkit import load_script
 
 from lasmp.config import SimCfg
 
-fc = load_script("bench/friction_cone.py")
+fc = load_script("bench/slide_protocol.py")
 
 BLOCK_MU = 0.5
 ROBOT_MU = 0.3  # low enough that the robot slides (16.7 deg) before it tips over sideways (~23 deg)

@@ -249,6 +249,14 @@ def plot(t: dict[str, np.ndarray], b: dict, path: Path) -> bool:
     return True
 
 
+def _against_baseline(t: dict[str, np.ndarray], baseline: dict[str, np.ndarray]) -> dict:
+    """`failure.against_baseline`, its refusal an EpisodesFileError (which `_naming` names the file of)."""
+    try:
+        return failure.against_baseline(t, baseline)
+    except ValueError as err:
+        raise EpisodesFileError(str(err)) from None
+
+
 def _naming(path: Path, fn, *args):
     """fn(*args), its EpisodesFileError prefixed with the file it is about."""
     try:
@@ -304,7 +312,7 @@ def _main(args, claims: contextlib.ExitStack) -> int:
         paired = None
         if args.baseline is not None:
             base = episodes_path(args.baseline)
-            paired = _naming(base, failure.against_baseline, table, read_csv(base))
+            paired = _naming(base, _against_baseline, table, read_csv(base))
     except (EpisodesFileError, InputError, OSError) as err:  # OSError: the plot already there, ...
         print(f"error: {err}", file=sys.stderr)
         return 2

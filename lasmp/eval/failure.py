@@ -76,19 +76,15 @@ def state_tables(t: dict[str, np.ndarray]) -> dict | None:
 def against_baseline(t: dict[str, np.ndarray], baseline: dict[str, np.ndarray]) -> dict:
     """t's failures in the episodes `baseline` survives, and t's collision rate where it survives and
     where it fails; episodes paired by number, refused when the baseline lacks one of t's or pairs it
-    with another robot or trajectory."""
-    from lasmp.eval.episodes import EpisodesFileError  # episodes.py reads FAILURE_KEYS from here
-
+    with another robot or trajectory (ValueError: the breakdown names the file)."""
     row = {int(k): i for i, k in enumerate(baseline["episode"])}
     missing = [int(k) for k in t["episode"] if int(k) not in row]
     if missing:
-        raise EpisodesFileError(
-            f"the baseline lacks {len(missing)} of the episodes, e.g. episode {missing[0]}"
-        )
+        raise ValueError(f"the baseline lacks {len(missing)} of the episodes, e.g. episode {missing[0]}")
     idx = np.array([row[int(k)] for k in t["episode"]], dtype=int)
     for c in ("foot_friction", "n_waypoints"):
         if not np.array_equal(t[c], baseline[c][idx]):
-            raise EpisodesFileError(f"the baseline holds other episodes: its {c} differs")
+            raise ValueError(f"the baseline holds other episodes: its {c} differs")
     failed = t["collided"] > 0.5
     survives = baseline["collided"][idx] < 0.5
     n_fail = int(failed.sum())

@@ -24,6 +24,7 @@ from lasmp.algo import checkpoint as ckpt_tool
 from lasmp.atomic import OutputExistsError, claim_output
 from lasmp.envs.trajectories import cli as trj_cli
 from lasmp.eval import benchmark as bm
+from lasmp.eval import benchmark_file
 from lasmp.eval import breakdown as bd
 from lasmp.eval import curves as curves_tool
 from lasmp.eval import episodes as ep
@@ -290,7 +291,7 @@ def _draw_with(monkeypatch, meanwhile):
 
 
 def _arrays_equal(a: bm.Benchmark, b: bm.Benchmark) -> bool:
-    x, y = bm._arrays(a), bm._arrays(b)
+    x, y = benchmark_file._arrays(a), benchmark_file._arrays(b)
     same = (np.array_equal(x[k], y[k], equal_nan=x[k].dtype.kind == "f") for k in x)  # NaN: padding
     return x.keys() == y.keys() and all(same)
 

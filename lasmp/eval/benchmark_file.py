@@ -227,5 +227,3 @@ def _check_regenerates(path, get, seed: int, num_trajectories: int, num_robots: 
                 f"lasmp.eval.benchmark generate --seed {seed} --num-trajectories {num_trajectories} "
                 f"--num-robots {num_robots} --out {path} --force"
             )
-
-

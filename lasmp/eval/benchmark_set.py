@@ -130,5 +130,3 @@ def generate(
 def generate_set(which: BenchmarkSet) -> Benchmark:
     """The benchmark `which` names, drawn from its seed and sizes."""
     return generate(which.num_trajectories, which.num_robots, which.seed)
-
-

@@ -33,7 +33,7 @@ from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.robot import as_numpy
 from lasmp.eval import benchmark as bm
-from lasmp.eval.cli import eval_env_overrides
+from lasmp.eval.build import eval_env_overrides
 from lasmp.eval.metrics import EpisodeMetrics, TrunkPose, metric_h_des_p_m
 from lasmp.eval.run import BenchmarkSource
 

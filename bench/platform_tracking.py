@@ -24,7 +24,7 @@ import numpy as np
 from lasmp.config import build_env_cfg
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
-from lasmp.eval.cli import DEFAULT_BENCHMARK, eval_env_overrides, load_or_make_benchmark
+from lasmp.eval.build import DEFAULT_BENCHMARK, eval_env_overrides, load_or_make_benchmark
 from lasmp.eval.run import BenchmarkSource
 from lasmp.eval.tracking import record_platform
 

@@ -233,7 +233,7 @@ def scenario_file(name: str) -> tuple[str, dict]:
 
 def use_benchmark_episodes(env, path: str, first: int) -> None:
     """Reset `env` into benchmark episodes first, first + 1, ... (trajectory k with robot k mod R)."""
-    from lasmp.eval.cli import load_or_make_benchmark
+    from lasmp.eval.build import load_or_make_benchmark
     from lasmp.eval.run import BenchmarkSource
 
     # the default benchmark is made on first use, as evaluate.py does

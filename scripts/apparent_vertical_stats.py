@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from lasmp.atomic import claim_output
+from lasmp.eval import build as eval_build
 from lasmp.eval import cli
 from lasmp.eval import platform_probe as pp
 from lasmp.eval.report import atomic_write_text
@@ -120,7 +121,7 @@ def table(xi: dict[str, np.ndarray], probe: dict[str, dict[str, float]]) -> str:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--episodes", type=int, default=2000, help="Xi_eval's first K episodes")
-    p.add_argument("--benchmark", type=Path, default=cli.DEFAULT_BENCHMARK)
+    p.add_argument("--benchmark", type=Path, default=eval_build.DEFAULT_BENCHMARK)
     p.add_argument("--batch-envs", type=int, default=1024)
     p.add_argument("--out", type=Path, required=True, help="the JSON to write")
     p.add_argument("--force", action="store_true", help="overwrite --out")
@@ -128,7 +129,7 @@ def main(argv=None) -> int:
     claims = contextlib.ExitStack()
     try:  # the files named, before the minutes of replay
         check_out_file(args.out, suffixes=(".json",), force=True, option="--out")
-        bench = cli.load_or_make_benchmark(args.benchmark)
+        bench = eval_build.load_or_make_benchmark(args.benchmark)
         # claimed last (create-exclusive): a file already there is refused without --force
         claims.enter_context(claim_output(args.out, force=args.force, option="--out"))
     except (*cli.INPUT_ERRORS, InputError, OSError) as err:
@@ -139,7 +140,7 @@ def main(argv=None) -> int:
         from lasmp.config import build_env_cfg
         from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 
-        env_cfg = build_env_cfg(cli.eval_env_overrides(args.batch_envs, 0), schema=MovingPlatformCfg)
+        env_cfg = build_env_cfg(eval_build.eval_env_overrides(args.batch_envs, 0), schema=MovingPlatformCfg)
         xi = pp.probe_platform(env_cfg, bench, args.episodes, args.batch_envs, stats=platform_stats)
         probe = probe_motion_stats(env_cfg.sim.dt_s * env_cfg.sim.decimation)
         text = table(xi, probe)

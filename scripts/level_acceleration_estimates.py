@@ -29,6 +29,7 @@ import torch
 
 from lasmp.algo.checkpoint import checkpoint_file
 from lasmp.atomic import atomic_write_with, claim_output
+from lasmp.eval import build as eval_build
 from lasmp.eval import cli
 from lasmp.eval.benchmark import Benchmark
 from lasmp.eval.real_motion import suite as rm
@@ -57,7 +58,7 @@ def record(args, bench: Benchmark) -> tuple[dict, dict[str, np.ndarray], float, 
         controller=None,
         checkpoint=args.checkpoint,
     )
-    env, controller, policy, _ = cli.build(build_args, extra)
+    env, controller, policy, _ = eval_build.build(build_args, extra)
     if policy is None or policy.explicit_estimator is None:
         raise SystemExit("error: the checkpoint's policy has no explicit estimator to record")
     steps: dict[str, list] = {k: [] for k in ("true_x", "est_x", "est_u", "z_trunk_w", "v_plf_w")}
@@ -165,7 +166,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--checkpoint", required=True, help="a LAS-MP checkpoint with an explicit estimator")
     p.add_argument("--out", type=Path, required=True)
-    p.add_argument("--benchmark", type=Path, default=cli.DEFAULT_BENCHMARK)
+    p.add_argument("--benchmark", type=Path, default=eval_build.DEFAULT_BENCHMARK)
     p.add_argument("--robots-per-scenario", type=int, default=rm.DEFAULT_ROBOTS_PER_SCENARIO)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--force", action="store_true", help="overwrite DIR/estimates.json and DIR/estimates.png")
@@ -176,7 +177,7 @@ def main(argv=None) -> int:
     try:  # the files named, before the minutes of play
         check_out_file(target, suffixes=(".json",), force=True, option="--out")
         args.checkpoint = checkpoint_file(args.checkpoint)
-        bench = cli.load_or_make_benchmark(args.benchmark)
+        bench = eval_build.load_or_make_benchmark(args.benchmark)
         # both files claimed last (create-exclusive): one already there is refused without --force
         for path in (target, figure):
             claims.enter_context(claim_output(path, force=args.force, option="--out"))

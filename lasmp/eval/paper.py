@@ -49,7 +49,7 @@ PAPER_ROWS: dict[str, tuple[str, tuple[tuple[float, float], ...]]] = {
 
 
 def paper_key(controller: str | None, method: str) -> str | None:
-    """The PAPER_ROWS key of an evaluation: its baseline, or the policy name that `cli.build` puts at
+    """The PAPER_ROWS key of an evaluation: its baseline, or the policy name that `lasmp.eval.build.build` puts at
     the end of a checkpoint's method string ("LAS-MP+ checkpoint PATH (name)", the recipe's name first);
     None if neither."""
     if controller is not None:

@@ -24,7 +24,7 @@ import torch
 from lasmp.checkpoint_cfg import checkpoint_cfg
 from lasmp.deploy import build_policy
 from lasmp.eval import benchmark as bm
-from lasmp.eval.cli import policy_eval_env
+from lasmp.eval.build import policy_eval_env
 from lasmp.eval.metrics import summarize
 from lasmp.eval.run import run_benchmark
 

@@ -145,7 +145,7 @@ def test_a_sound_benchmark_file_loads(tmp_path):
 
 def test_xi_eval_as_evaluate_makes_it_on_first_use_passes_every_check(tmp_path):
     # benchmarks/xi_eval.npz is not in the repository: evaluate.py writes it from seed 0 on first use
-    # (lasmp.eval.cli.load_or_make_benchmark); made here the same way, so the test needs no other first
+    # (lasmp.eval.build.load_or_make_benchmark); made here the same way, so the test needs no other first
     path = tmp_path / "xi_eval.npz"
     bm.save(path, bm.generate())
     bench = bm.load(path)

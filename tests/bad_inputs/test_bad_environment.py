@@ -148,7 +148,7 @@ def test_play_and_evaluate_of_a_warp_checkpoint_without_mujoco_warp_are_refused_
 
     monkeypatch.setitem(sys.modules, "mujoco_warp", None)
     monkeypatch.setattr("lasmp.deploy.make_env", no_env)
-    monkeypatch.setattr("lasmp.eval.cli.policy_eval_env", no_env)
+    monkeypatch.setattr("lasmp.eval.build.policy_eval_env", no_env)
     wanted = (rf"checkpoint .*{warp_checkpoint.name} was trained with env\.backend=warp", r"\[gpu\]")
     out = call(play, ["--checkpoint", str(warp_checkpoint), "--steps", "1"])
     one_error_line(out, *wanted)

@@ -136,7 +136,7 @@ def test_physics_a_state_and_its_mirror_image_stay_mirror_images_under_mirrored_
 
 
 def test_a_training_hold_lengthens_the_episode_and_evaluation_plays_xi_eval_at_t():
-    from lasmp.eval.cli import deep_merge, eval_env_overrides
+    from lasmp.eval.build import deep_merge, eval_env_overrides
 
     held = {"num_envs": 2, "trajectory": {"hold_s": 2.0}}
     env = MovingPlatformEnv(build_env_cfg(held, schema=MovingPlatformCfg))

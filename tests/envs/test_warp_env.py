@@ -18,7 +18,7 @@ from lasmp.config import build_env_cfg  # noqa: E402
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg  # noqa: E402
 from lasmp.envs.moving_platform.env import MovingPlatformEnv  # noqa: E402
 from lasmp.eval import benchmark as bm  # noqa: E402
-from lasmp.eval.cli import eval_env_overrides  # noqa: E402
+from lasmp.eval.build import eval_env_overrides  # noqa: E402
 from lasmp.eval.run import run_benchmark  # noqa: E402
 
 pytestmark = pytest.mark.warp

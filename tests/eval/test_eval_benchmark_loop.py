@@ -67,7 +67,7 @@ def test_shrinking_the_tail_steps_only_playing_envs_and_changes_no_episode():
     from lasmp.config import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
-    from lasmp.eval.cli import eval_env_overrides
+    from lasmp.eval.build import eval_env_overrides
     from lasmp.eval.run import run_benchmark
 
     bench = bm.generate(num_trajectories=10, num_robots=4, seed=0)

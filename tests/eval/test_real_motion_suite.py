@@ -13,7 +13,7 @@ from testkit import load_script
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.eval import benchmark as bm
-from lasmp.eval.cli import eval_env_overrides
+from lasmp.eval.build import eval_env_overrides
 from lasmp.eval.cli import main as evaluate_main
 from lasmp.eval.metrics import METRICS
 from lasmp.eval.real_motion import suite as rm

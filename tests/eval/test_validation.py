@@ -61,7 +61,7 @@ def test_a_validation_benchmark_drawn_from_xi_evals_seed_is_refused(tmp_path):
 def test_evaluate_plays_the_validation_benchmark_by_name_and_writes_apart_from_xi_eval(tmp_path):
     from types import SimpleNamespace
 
-    from lasmp.eval.cli import benchmark_arg
+    from lasmp.eval.build import benchmark_arg
     from lasmp.eval.outdir import default_out_dir
 
     assert benchmark_arg("validation") == Path(bm.VALIDATION.path)

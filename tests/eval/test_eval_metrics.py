@@ -215,7 +215,7 @@ def test_the_height_band_is_centred_037_m_above_the_top_whatever_the_reward_read
     from lasmp.config import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
-    from lasmp.eval.cli import eval_env_overrides
+    from lasmp.eval.build import eval_env_overrides
     from lasmp.eval.metrics import metric_h_des_p_m
     from lasmp.eval.run import run_benchmark
 

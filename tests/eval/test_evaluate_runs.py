@@ -170,7 +170,7 @@ def test_oracle_command_points_to_the_platform_centre_in_the_heading_frame():
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.envs.moving_platform.readout import read_scene
-    from lasmp.eval.cli import oracle_command
+    from lasmp.eval.build import oracle_command
 
     env = MovingPlatformEnv(
         build_env_cfg({"num_envs": 2, "domain_rand": {"enabled": False}}, schema=MovingPlatformCfg)

@@ -17,6 +17,8 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
+from lasmp.hydra_compat import args_parser, basic_sweep_jobs
+
 
 def _compose(config_dir: Path, config_name: str, overrides: list[str]):
     from hydra import compose, initialize_config_dir
@@ -43,23 +45,17 @@ def unknown_key_error(argv: list[str], config_dir: Path, config_name: str) -> st
 
 
 def _parse_args(argv: list[str]):
-    from hydra._internal.utils import get_args_parser  # hydra.main's own: the overrides it will compose
-
-    return get_args_parser().parse_args(argv)
+    return args_parser().parse_args(argv)  # hydra.main's own: the overrides it will compose
 
 
 def sweep_jobs(overrides: list[str]) -> list[list[str]] | None:
     """The jobs of `train.py -m OVERRIDES`, each its list of overrides, in the order (and so with the
     numbers #0, #1, ...) Hydra's basic sweeper launches them; None where they cannot be expanded here
     (Hydra's app then reports why)."""
-    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
     try:
-        (batch,) = BasicSweeper.split_arguments(OverridesParser.create().parse_overrides(overrides), None)
+        return basic_sweep_jobs(overrides)
     except Exception:  # a sweep this parser cannot expand alone (glob over a group, an interval)
         return None
-    return [list(job) for job in batch]
 
 
 def _unknown_key(overrides: list[str], config_dir: Path, config_name: str) -> str | None:

@@ -33,6 +33,7 @@ from lasmp.algo.checkpoint import (
 )
 from lasmp.checkpoint_cfg import rebuilding
 from lasmp.envs.trajectories.splines import PADDING
+from lasmp.rsl_compat import NORMALIZER_STD_KEY, NORMALIZER_VAR_KEY
 from lasmp.rundir import CHECKPOINT_NAME, RunDirError, describe, run_files
 from lasmp.train_bounds import ITERATIONS
 from lasmp.train_cfg import TrainCfg, to_plain, to_train_cfg
@@ -268,8 +269,8 @@ SANE = {
     "exp_avg_sq": (lambda v: v >= 0, "Adam's second moments must be >= 0"),
     "step": (lambda v: v >= 0, "Adam's step count must be >= 0"),
     "std_param": (lambda v: v > 0, "the action noise's standard deviation must be > 0"),
-    "_var": (lambda v: v >= 0, "a normalizer's variance must be >= 0"),
-    "_std": (lambda v: v >= 0, "a normalizer's standard deviation must be >= 0"),
+    NORMALIZER_VAR_KEY: (lambda v: v >= 0, "a normalizer's variance must be >= 0"),
+    NORMALIZER_STD_KEY: (lambda v: v >= 0, "a normalizer's standard deviation must be >= 0"),
     "count": (lambda v: v >= 0, "a normalizer's count must be >= 0"),
 }
 

@@ -14,7 +14,6 @@ import shlex
 import shutil
 import sys
 import threading
-import traceback
 from pathlib import Path
 
 import torch
@@ -31,7 +30,9 @@ from lasmp.inputs import SEED_MAX
 from lasmp.preflight import training_environment_error
 from lasmp.recipe import run_label, run_slug
 from lasmp.resume import Resume, check_run_dir, explicit_keys, hydra_overrides, resume_command
+from lasmp.rsl_compat import raised_storing_code_state
 from lasmp.rundir import RunDirError, claim, run_checkpoints
+from lasmp.tb_compat import events_file, is_writer_thread, raised_in_tensorboard, writer_thread_error
 from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
 from lasmp.train_resources import check_disk_space, check_memory
 from lasmp.warm_start import WarmStart
@@ -244,29 +245,18 @@ def _named(err: OSError, runner: LasmpRunner, log_dir: Path) -> OSError:
     (`AtomicWriteError`); rsl_rl's git diff and TensorBoard's events file raise a bare OSError,
     without a file name, from their writes, or (TensorBoard reopens its events file for each append)
     one that names the events file in bytes."""
-    events = getattr(
-        getattr(getattr(runner.logger.writer, "file_writer", None), "event_writer", None), "_file_name", None
-    )
+    writer = runner.logger.writer
+    events = events_file(writer)
     if err.filename is not None:
         named_events = events is not None and os.fsdecode(err.filename) == os.fsdecode(events)
         return AtomicWriteError(Path(os.fsdecode(events)), err) if named_events else err
-    frames = traceback.extract_tb(err.__traceback__)
-    if any(f.name == "_store_code_state" for f in frames):
+    if raised_storing_code_state(err):
         where = log_dir / "git"  # rsl_rl's record of the code's state: git/<repository>.diff
-    elif events is not None and (
-        err is _writer_error(runner) or any("tensorboard" in f.filename for f in frames)
-    ):
+    elif events is not None and (err is writer_thread_error(writer) or raised_in_tensorboard(err)):
         where = Path(events)
     else:
         where = log_dir
     return AtomicWriteError(where, err)
-
-
-def _writer_error(runner: LasmpRunner) -> BaseException | None:
-    """The exception TensorBoard's writer thread stopped on (it raises the same one in the main thread)."""
-    event_writer = getattr(getattr(runner.logger.writer, "file_writer", None), "event_writer", None)
-    worker = getattr(getattr(event_writer, "_async_writer", None), "_worker", None)
-    return getattr(worker, "exception", None)
 
 
 # what a failed start of a new run may have written: they are removed when it saved no checkpoint
@@ -330,9 +320,7 @@ def quiet_writer_threads():
     previous = threading.excepthook
 
     def hook(args):
-        if not (
-            issubclass(args.exc_type, OSError) and type(args.thread).__module__.startswith("tensorboard")
-        ):
+        if not (issubclass(args.exc_type, OSError) and is_writer_thread(args.thread)):
             previous(args)
 
     threading.excepthook = hook

@@ -25,6 +25,7 @@ LAYERS = (
     ("lasmp.modules",),
     ("lasmp.robots", "lasmp.config", "lasmp.plainstate", "lasmp.rundir", "lasmp.memory"),
     ("lasmp.atomic", "lasmp.inputs", "lasmp.ctrl_c", "lasmp.preflight"),
+    ("lasmp.rsl_compat", "lasmp.tb_compat", "lasmp.hydra_compat"),
 )
 
 

@@ -71,8 +71,8 @@ from lasmp.algo.checkpoint import (
     set_rng_state,
 )
 from lasmp.algo.console import OneLineLogger, network_line, without_network_printout
-from lasmp.algo.rsl_compat import OnPolicyRunnerCompat
 from lasmp.atomic import atomic_open
+from lasmp.rsl_compat import OnPolicyRunnerCompat
 
 INTERRUPT_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 BEST_POLICY = "policy_best.pt"  # the run's policy of the best validation score

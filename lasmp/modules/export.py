@@ -90,8 +90,8 @@ def _normalization(actor: LasmpActor) -> dict:
         "folded_into_graph": True,
         "feed": "raw observations (do not normalize them again)",
         "formula": "(o - mean) / (std + eps), per column of o_t, for every o in the window",
-        "mean": norm._mean[0, : actor.num_obs].tolist(),
-        "std": norm._std[0, : actor.num_obs].tolist(),
+        "mean": norm.mean[: actor.num_obs].tolist(),
+        "std": norm.std[: actor.num_obs].tolist(),
         "eps": float(norm.eps),
     }
 

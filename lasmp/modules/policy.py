@@ -10,7 +10,6 @@ from __future__ import annotations
 import copy
 
 import torch
-from rsl_rl.models import MLPModel
 from tensordict import TensorDict
 from torch import nn
 
@@ -30,9 +29,10 @@ from lasmp.modules.obs_groups import (
     alignment_from_estimates,
     explicit_indices,
 )
+from lasmp.rsl_compat import MLPModelCompat
 
 
-class LasmpActor(MLPModel):
+class LasmpActor(MLPModelCompat):
     """LAS-MP actor: b_theta([o, x_exp, u_aln]_normalized, l_imp[, o^H normalized, flattened]) -> action mean.
 
     Training mode (``deploy=False``) uses the true privileged groups: x_exp = `priv_explicit`,
@@ -72,7 +72,7 @@ class LasmpActor(MLPModel):
                 f"use_alignment=True needs explicit='all': the alignment command is rebuilt from the platform "
                 f"velocity estimates, which explicit={explicit!r} does not provide (set use_alignment=False)"
             )
-        # read by _get_obs_dim/_get_latent_dim during MLPModel.__init__
+        # read by select_obs/backbone_input_size during MLPModel.__init__
         self.explicit = explicit
         self.num_explicit = len(sel)  # selections are prefixes of x_exp
         self.use_alignment = bool(use_alignment)
@@ -104,8 +104,8 @@ class LasmpActor(MLPModel):
         )
         self.implicit_estimator = HistoryEstimator(out_dim=latent_dim, **est_kw)
 
-    # ----------------------------------------------------------------- dims (MLPModel hooks)
-    def _get_obs_dim(
+    # ----------------------------------------------------------------- dims (MLPModel's input hooks)
+    def select_obs(
         self, obs: TensorDict, obs_groups: dict[str, list[str]], obs_set: str
     ) -> tuple[list[str], int]:
         """Check the groups and return the size of the normalized part [o, x_exp(selected), u_aln]."""
@@ -131,7 +131,7 @@ class LasmpActor(MLPModel):
         self.num_implicit = obs[GROUP_IMPLICIT].shape[-1]
         return active, self.num_obs + self.num_explicit + self.num_alignment + self.num_command
 
-    def _get_latent_dim(self) -> int:
+    def backbone_input_size(self) -> int:
         """Backbone input size: normalized [o, x_exp, u_aln] + l_imp (+ flattened history)."""
         hist = self.history_len * self.num_obs if self.history_input else 0
         self.backbone_input_dim = self.obs_dim + self.latent_dim + hist
@@ -142,7 +142,7 @@ class LasmpActor(MLPModel):
         """(mean, scale), each (1, D): the o-part of the model normalizer, for per-step history normalization."""
         if self.obs_normalization:
             norm = self.obs_normalizer
-            return norm._mean[:, : self.num_obs], norm._std[:, : self.num_obs] + norm.eps
+            return norm.mean[None, : self.num_obs], norm.std[None, : self.num_obs] + norm.eps
         ref = self.mlp[0].weight
         return ref.new_zeros(1, self.num_obs), ref.new_ones(1, self.num_obs)
 

@@ -94,7 +94,7 @@ def wandb_login_error() -> str | None:
         found = authenticate.authenticate_session(
             host=settings.base_url, source="lasmp", prompt=False, update_session=False
         )
-    except (ImportError, AttributeError, TypeError):  # another wandb version: wandb.init judges, as before
+    except (ImportError, AttributeError, TypeError):  # another wandb version: wandb.init judges
         return None
     except Exception as err:  # credentials found but unusable (a malformed key, two sources)
         return f"runner.logger=wandb: W&B's credentials are unusable ({type(err).__name__}: {err})"

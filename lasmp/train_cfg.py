@@ -142,14 +142,14 @@ class AlgoCfg:
     estimate_rollout_start: int = 100
     # (ours) how the learner computes (lasmp/algo/precision.py): auto = bfloat16 autocast, the fused
     # Adam and compiled MLPs, each where it works and pays here, the start-up line saying why not;
-    # float32 = none of them (the learner before auto: a seeded run repeats its curve); bfloat16 = the
-    # autocast forced (docs/performance.md#the-learners-precision-algoprecision)
+    # float32 = none of them (the same learner wherever it runs: a seeded run repeats its curve);
+    # bfloat16 = the autocast forced (docs/performance.md#the-learners-precision-algoprecision)
     precision: str = "auto"
     # per-part overrides of precision (null: as precision decides). fused_adam: both Adams as one
     # fused kernel; use_mixed_precision: rsl_rl's bfloat16 autocast of the PPO update's forward pass,
     # extended to the ROA pass; compile_mlps: torch.compile in place the actor's and critic's MLPs, the
     # implicit encoder's and the history estimators (the first iteration compiles; a CPU needs a C++
-    # compiler; checkpoints are unchanged). Configs saved before `precision` hold false for all three
+    # compiler; checkpoints are unchanged). All three false: the float32 learner, whatever precision says
     fused_adam: bool | None = None
     use_mixed_precision: bool | None = None
     compile_mlps: bool | None = None

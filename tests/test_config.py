@@ -274,7 +274,15 @@ def test_a_saved_config_reads_back_to_the_same_train_cfg(task):
         == common
         + {
             "moving_platform": ["platform", "trajectory", "curriculum", "rewards", "termination"],
-            "rough_static": ["episode_length_s", "terrain", "commands", "pushes", "rewards", "termination"],
+            "rough_static": [
+                "episode_length_s",
+                "terrain",
+                "commands",
+                "pushes",
+                "rewards",
+                "termination",
+                "study_rng_stream",
+            ],
         }[task]
     )
 

@@ -23,7 +23,8 @@ It is written to a temporary file in the same directory and renamed over the tar
 (`atomic_torch_save`), so an interrupted save never leaves a truncated checkpoint behind.
 Every command reads one through `read_checkpoint`: only a regular file (a FIFO would hang it), and
 only one that begins as a PyTorch checkpoint (an ONNX model, a text or .npz file is named for what
-it is); a checkpoint of a newer format than CHECKPOINT_VERSION says to update lasmp.
+it is); a checkpoint of a newer format than CHECKPOINT_VERSION says to update lasmp. Running state
+that names a class or a field otherwise than the envs do reads back renamed (`RENAMED_RUN_STATE`).
 """
 
 from __future__ import annotations
@@ -51,6 +52,24 @@ REQUIRED_KEYS = ("actor_state_dict", "critic_state_dict", "config", "obs_layout"
 # the envs' running-state format (BaseEnv.RUN_STATE_FORMAT) that stores it as plain data: what
 # `convert_trusted` writes (a test holds it equal to the env's)
 PLAIN_RUN_STATE_FORMAT = 3
+# The envs' running state names the class of each dataclass it holds (`lasmp.plainstate.pack`), and
+# `unpack` restores one only into a live value of that class with the same fields. A checkpoint
+# that names a class or a field otherwise reads back through this table, kept here so that the
+# envs' classes carry one name each: task -> attribute -> rules (class in the file, class now,
+# {field in the file: field now}, fields the class now lacks: dropped). `rename_run_state` applies
+# them to every checkpoint read (`read_checkpoint`) and converted (`convert_trusted`).
+RunStateRule = tuple[str, str, dict[str, str], tuple[str, ...]]
+RENAMED_RUN_STATE: dict[str, dict[str, tuple[RunStateRule, ...]]] = {
+    "moving_platform": {"readout": (("Readout", "SceneReadout", {}, ()),)},
+    "rough_static": {
+        "last_state": (
+            ("RoughStepState", "StepState", {"body_contact": "collision"}, ()),
+            ("StepState", "StepState", {"body_contact": "collision"}, ()),
+        ),
+        # robots held with the moving platform's gain factors, which the R-S baseline never reads
+        "intrinsics": (("Intrinsics", "RobotIntrinsics", {}, ("platform_kp_factor", "platform_kd_factor")),),
+    },
+}
 
 
 class CheckpointError(ValueError):
@@ -206,7 +225,32 @@ def read_checkpoint(path: str | Path, map_location: str = "cpu", full_only: bool
             raise CheckpointError(f"checkpoint {path} lacks '{key}'")
     if type(data["iter"]) is not int or data["iter"] < 0:
         raise CheckpointError(f"checkpoint {path}: 'iter' must be an iteration >= 0, got {data['iter']!r}")
+    rename_run_state(data)
     data["path"] = str(path)
+    return data
+
+
+def rename_run_state(data: dict) -> dict:
+    """`data`, a checkpoint, with its envs' running state in the classes and fields the envs hold
+    (`RENAMED_RUN_STATE`, by the checkpoint's task), changed in place; one without running state (a
+    policy checkpoint) stays as it is."""
+    env_state = data.get("env_state")
+    run = env_state.get("run") if isinstance(env_state, dict) else None
+    attrs = run.get("attrs") if isinstance(run, dict) else None
+    if not isinstance(attrs, dict):
+        return data
+    config = data.get("config")
+    task = config.get("task", "moving_platform") if isinstance(config, dict) else None  # TrainCfg's default
+    for name, rules in RENAMED_RUN_STATE.get(task, {}).items():
+        saved = attrs.get(name)
+        for former, now, fields, dropped in rules:
+            if (
+                isinstance(saved, dict)
+                and saved.get("class") == former
+                and isinstance(saved.get("fields"), dict)
+            ):
+                kept = {fields.get(k, k): v for k, v in saved["fields"].items() if k not in dropped}
+                saved = attrs[name] = {**saved, "class": now, "fields": kept}
     return data
 
 
@@ -253,6 +297,7 @@ def convert_trusted(src: str | Path, dst: str | Path, force: bool = False) -> Pa
                 raise CheckpointError(
                     f"checkpoint {src}: its running state cannot be converted: {err}"
                 ) from None
+        rename_run_state(data)
         data.pop("path", None)
         atomic_torch_save(data, dst)
     read_checkpoint(dst)  # the result must load safely

@@ -6,11 +6,12 @@ others oneDNN emulates bfloat16 and the matrix products run several times slower
 product of the learner's size also measures faster in bfloat16 than in float32 (the flag alone
 cannot tell: docs/performance.md#the-learners-precision-algoprecision), or on a GPU with native
 bfloat16; the fused Adam where torch has it for the device; compiled MLPs where a tiny
-`torch.compile` succeeds (on a CPU it needs a C++ compiler). `float32` is the learner as it was
-before `auto`: no autocast, rsl_rl's Adam, eager networks, so a seeded run repeats its old curve.
+`torch.compile` succeeds (on a CPU it needs a C++ compiler). `float32` takes none of them: no
+autocast, rsl_rl's Adam, eager networks, the same learner wherever it runs, so that a seeded run
+repeats the curve of a float32 run of its seed.
 `bfloat16` forces the autocast (with a warning where it is emulated). The per-part switches
 `algo.use_mixed_precision`, `algo.fused_adam`, `algo.compile_mlps` (null: as `precision` says)
-override one part; configs saved before `precision` existed set all three to false.
+override one part; all three false is the float32 learner, whatever `precision` says.
 """
 
 from __future__ import annotations

@@ -156,7 +156,7 @@ class BaseEnv(VecEnv):
                 )
                 return False
             live = {k: getattr(self, k) for k in self.RUN_STATE + self.TASK_STATE}
-            saved_attrs = self._upgrade_run_state(saved["attrs"])
+            saved_attrs = saved["attrs"]
             if set(saved_attrs) != set(live):
                 raise PlainStateError(
                     f"saved running state holds {sorted(saved_attrs)}, this env {sorted(live)}"
@@ -168,20 +168,6 @@ class BaseEnv(VecEnv):
                 setattr(self, key, value)
             return True
         return False
-
-    # dataclasses of the running state renamed since checkpoints were written: attribute -> (the class's
-    # former name, its name now)
-    RENAMED_RUN_STATE: dict[str, tuple[str, str]] = {}
-
-    def _upgrade_run_state(self, attrs: dict) -> dict:
-        """The saved running state (`pack` output by attribute name) as this version of the task holds
-        it, so that checkpoints written before its classes were renamed (`RENAMED_RUN_STATE`) or its
-        state changed shape (a task extends this) still resume exactly."""
-        for name, (former, now) in self.RENAMED_RUN_STATE.items():
-            saved = attrs.get(name)
-            if isinstance(saved, dict) and saved.get("class") == former:
-                attrs = {**attrs, name: {**saved, "class": now}}
-        return attrs
 
     def _task_state(self) -> dict:
         return {}

@@ -15,9 +15,12 @@ sensors `imu_acc`, `imu_gyro`, `<leg>_foot_contact` (found + net force, world fr
 `<body>_collision` (found) for every body of `a1.NON_FOOT_COLLISION_GEOMS`.
 
 torch tensors on the backend's device and dtype (float64 on the CPU backend), (num_envs, ...).
-Frames: `w` world, `b` trunk (origin at the trunk link origin,
-the IMU site; x forward, y left, z up). We put b at the link origin rather than at the randomized
-CoM so that its velocities are what an IMU on the real trunk measures.
+Frames (the one definition; the tasks' modules and docs/environment.md#frames point here): `w` world;
+`b` trunk: the trunk body's frame, x forward, y left, z up, with its origin at the trunk link's
+origin (where the `imu` site sits), not at its centre of mass: `p_body_w` is the free joint's
+position (MuJoCo's `xpos` of the trunk, never `xipos`), `v_body_b` that point's velocity. b stays at
+the link origin when domain randomization shifts the CoM, so that its velocities are what an IMU on
+the real trunk measures.
 """
 
 from __future__ import annotations

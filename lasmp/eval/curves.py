@@ -35,10 +35,14 @@ MAIN_TAGS = {
     "Train/mean_reward": "mean episode reward",
     "Episode/length_s": "mean episode length (s)",
 }
+# tags that event files may hold for a main tag, read as it: R-S runs' logs that tag the share of
+# episodes reaching the time limit `Episode/timeout_rate` (both tasks log it as `Episode/success_rate`)
+TAG_ALIASES = {"Episode/timeout_rate": "Episode/success_rate"}
 
 
 def read_scalars(run_dir: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """tag -> (iterations, values) of every scalar in the run's event files (later files win)."""
+    """tag -> (iterations, values) of every scalar in the run's event files (later files win; a tag of
+    `TAG_ALIASES` under the name it stands for)."""
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     files = sorted(Path(run_dir).glob("events.out.tfevents.*"))
@@ -49,7 +53,9 @@ def read_scalars(run_dir: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray]
         acc = EventAccumulator(str(f), size_guidance={"scalars": 0})
         acc.Reload()
         for tag in acc.Tags()["scalars"]:
-            series.setdefault(tag, {}).update({e.step: e.value for e in acc.Scalars(tag)})
+            series.setdefault(TAG_ALIASES.get(tag, tag), {}).update(
+                {e.step: e.value for e in acc.Scalars(tag)}
+            )
     return {t: (np.array(sorted(s)), np.array([s[k] for k in sorted(s)])) for t, s in series.items()}
 
 

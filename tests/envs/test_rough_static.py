@@ -131,7 +131,7 @@ def _state(**kw) -> StepState:
         q_ddot=torch.zeros(n, 12),
         action=torch.zeros(n, 12),
         action_prev=torch.zeros(n, 12),
-        body_contact=torch.zeros(n, dtype=torch.bool),
+        collision=torch.zeros(n, dtype=torch.bool),
         touchdown=torch.zeros(n, 4, dtype=torch.bool),
         t_air_s=torch.zeros(n, 4),
     )
@@ -159,7 +159,7 @@ def test_reward_terms_have_the_right_signs():
         "torques": _state(tau=5 * one),
         "joint_acc": _state(q_ddot=100 * one),
         "action_rate": _state(action=one),
-        "body_contact": _state(body_contact=torch.tensor([True])),
+        "body_contact": _state(collision=torch.tensor([True])),
         "orientation": _state(gravity_b=torch.tensor([[0.3, 0.0, -0.95]])),
         "stand_still": _state(q_dev=0.1 * one),
     }
@@ -188,12 +188,22 @@ def test_body_contact_terminates_and_time_out_is_a_truncation():
     _, _, done, extras = env.step(zeros(env))
     assert done.tolist() == [True, False] and not extras["time_outs"].any()
     assert extras["log"]["Termination/body_contact"] >= 1 and "Episode_Reward/body_contact" in extras["log"]
+    assert extras["log"]["Episode/success_rate"] == 0.0  # the moving platform's tag: none reached the limit
 
     env = make(2, seed=3, episode_length_s=0.1, pushes={"enabled": False})
     for i in range(5):
         _, _, done, extras = env.step(zeros(env))
         assert done.all() == (i == 4)
-    assert extras["time_outs"].all()
+    assert extras["time_outs"].all() and extras["log"]["Episode/success_rate"] == 1.0
+
+
+def test_the_study_rng_stream_switch_only_moves_the_draws_after_the_robots():
+    """On (the default), each reset draws 12 unused uniforms per env after the robots' intrinsics;
+    off, the same robots, then other spawn places from the same seed."""
+    on, off = make(3, seed=5), make(3, seed=5, study_rng_stream=False)
+    assert on.cfg.study_rng_stream and not off.cfg.study_rng_stream
+    np.testing.assert_array_equal(on.intrinsics.x_imp(), off.intrinsics.x_imp())
+    assert not torch.equal(read_robot(on.sim, on.index).p_body_w, read_robot(off.sim, off.index).p_body_w)
 
 
 @pytest.mark.parametrize(

@@ -39,6 +39,18 @@ def test_windows_average_the_main_tags_and_reward_terms(run_dir, capsys):
     assert "Loss/value_function" not in windows[0]
 
 
+def test_an_rs_runs_timeout_rate_reads_as_the_success_rate(tmp_path):
+    """Event files that tag the share of episodes reaching the time limit `Episode/timeout_rate`
+    read under the tag both tasks log it as."""
+    w = SummaryWriter(str(tmp_path))
+    for it in range(3):
+        w.add_scalar("Episode/timeout_rate", it / 4, it)
+    w.close()
+    scalars = curves.read_scalars(tmp_path)
+    assert "Episode/timeout_rate" not in scalars
+    assert scalars["Episode/success_rate"][1].tolist() == [0.0, 0.25, 0.5]
+
+
 def test_a_directory_without_event_files_is_an_error(tmp_path, capsys):
     assert curves.main([str(tmp_path), "--json"]) == 2
     assert "no TensorBoard event files" in capsys.readouterr().err

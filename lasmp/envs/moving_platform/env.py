@@ -292,7 +292,9 @@ class MovingPlatformEnv(BaseEnv):
         self.traj_level[ids_h] = levels
 
         init = self.cfg.init_state
-        if pose_u is None:  # three uniforms per env, in the order training has always drawn them
+        # three uniforms per env (yaw, then the xy offset's radius and angle where there is one): this
+        # order fixes the random stream a seed gives
+        if pose_u is None:
             pose_u = np.zeros((n, 3))
             pose_u[:, 0] = self.rng.uniform(size=n)
             if init.xy_offset_max_m > 0:
@@ -359,8 +361,6 @@ class MovingPlatformEnv(BaseEnv):
         "last_state",
     )
     RUN_STATE_CLASSES = (StepState, SceneReadout)
-    # the readout was a `Readout` before it was named for the scene it reads
-    RENAMED_RUN_STATE = {"readout": ("Readout", "SceneReadout")}
 
     def _task_state(self) -> dict:
         return {"curriculum": self.curriculum.state_dict() if self.curriculum is not None else None}

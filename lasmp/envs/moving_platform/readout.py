@@ -4,8 +4,8 @@ named physical quantities of docs/environment.md#frames and docs/method.md#input
 relative to each other, at the addresses of `SceneIndex` (the robot's `RobotIndex` and the platform's).
 
 Everything here is torch, on the backend's device and dtype, (num_envs, ...). Frames: `w` world, `p` platform (origin at
-the platform's CoM = its geometric centre), `b` trunk (as in `lasmp.envs.robot`: origin at the
-trunk link origin, the IMU site; x forward, y left, z up).
+the platform's CoM = its geometric centre), `b` trunk (as `lasmp.envs.robot` defines it: origin at the
+trunk link's origin).
 """
 
 from __future__ import annotations

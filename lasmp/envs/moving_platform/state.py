@@ -2,8 +2,8 @@
 
 The environment fills one `StepState` after every policy step; reward terms are pure
 functions of it. All tensors are float32 (bool where noted) with a leading `num_envs`
-dimension. Frames: `w` world, `p` platform (origin at the platform's centre of mass),
-`b` trunk body (origin at the trunk's centre of mass). Units: SI (m, s, rad, N, N·m).
+dimension. Frames: `w` world, `p` platform (origin at the platform's centre of mass), `b` trunk
+(as `lasmp.envs.robot` defines it: origin at the trunk link's origin). Units: SI (m, s, rad, N, N·m).
 """
 
 from __future__ import annotations

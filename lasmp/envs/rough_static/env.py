@@ -145,7 +145,7 @@ class RoughStaticEnv(BaseEnv):
             q_ddot=((r.q_dot - self.q_dot_prev) / dt).to(f32),
             action=self.action.to(f32),
             action_prev=self.action_prev.to(f32),
-            body_contact=r.body_collision.clone(),
+            collision=r.body_collision.clone(),
             touchdown=gait.touchdown,
             t_air_s=gait.t_air_s.to(f32),
         )
@@ -160,6 +160,9 @@ class RoughStaticEnv(BaseEnv):
         log = {
             "Termination/body_contact": float(r.body_collision.sum()),
             "Termination/tilt": float(tilted.sum()),
+            # a rate over no episode until one ends at this step (the reset's log then holds it): the
+            # progress line keeps its column before the first episode ends
+            "Episode/success_rate": float("nan"),
         }
         return reward, fell, faulted, log
 
@@ -169,15 +172,15 @@ class RoughStaticEnv(BaseEnv):
         finished = terminated | timed_out
         if finished.any():
             log = self._finished_episode_log(ids[finished])
-            log["Episode/timeout_rate"] = float(timed_out[finished].double().mean())
+            # the share of the ended episodes that reached the time limit (the moving platform's tag)
+            log["Episode/success_rate"] = float(timed_out[finished].double().mean())
         n = len(ids)
         ids_h = ids.cpu().numpy()  # the host draws below are per env
         dr = self.cfg.domain_rand
         if dr.enabled:
             params = sample_robot_intrinsics(n, dr.ranges, self.rng)
-            # as many uniforms as the platform's gain factors take, unused: the random stream stays the
-            # one the R-S baseline's seeds were trained with (the study's R-S runs train as they did)
-            self.rng.uniform(size=(n, 12))
+            if self.cfg.study_rng_stream:  # unused draws: the stream of the study's R-S seeds (cfg.py)
+                self.rng.uniform(size=(n, 12))
         else:
             params = nominal_robot_intrinsics(n)
         update_rows(self.intrinsics, ids_h, params)
@@ -240,16 +243,3 @@ class RoughStaticEnv(BaseEnv):
         "last_state",
     )
     RUN_STATE_CLASSES = (StepState, RobotReadout)
-    # the step state was a `RoughStepState` before both tasks named their parts alike
-    RENAMED_RUN_STATE = {"last_state": ("RoughStepState", "StepState")}
-
-    def _upgrade_run_state(self, attrs: dict) -> dict:
-        """A checkpoint written while the robot layer drew the platform's gain factors holds the
-        robots as `Intrinsics`, with those factors, which the R-S baseline never used: they are
-        dropped, and the robots read back as the `RobotIntrinsics` they are."""
-        attrs = super()._upgrade_run_state(attrs)
-        intrinsics = attrs.get("intrinsics")
-        if isinstance(intrinsics, dict) and intrinsics.get("class") == "Intrinsics":
-            fields = {k: v for k, v in intrinsics["fields"].items() if not k.startswith("platform_")}
-            attrs = {**attrs, "intrinsics": {**intrinsics, "class": "RobotIntrinsics", "fields": fields}}
-        return attrs

@@ -72,7 +72,7 @@ action_rate = reward_term(shared.action_rate_sq, "action_rate")
 
 @reward_term
 def body_contact(s: StepState, c: RewardsCfg) -> torch.Tensor:
-    return s.body_contact.to(s.v_body_b.dtype)
+    return s.collision.to(s.v_body_b.dtype)
 
 
 @reward_term

@@ -2,8 +2,8 @@
 
 The environment fills one `StepState` after every policy step; reward terms are pure functions of it
 (as `lasmp.envs.moving_platform.state` for the moving-platform task). All tensors are float32 (bool
-where noted) with a leading `num_envs` dimension. Frames: `b` trunk body (origin at the trunk link
-origin, as in `lasmp.envs.robot`). Units: SI (m, s, rad, N, N·m).
+where noted) with a leading `num_envs` dimension. Frames: `b` trunk (as `lasmp.envs.robot` defines
+it: origin at the trunk link's origin). Units: SI (m, s, rad, N, N·m).
 """
 
 from __future__ import annotations
@@ -25,6 +25,6 @@ class StepState:
     q_ddot: torch.Tensor  # (n, 12) rad/s²
     action: torch.Tensor  # (n, 12)
     action_prev: torch.Tensor  # (n, 12)
-    body_contact: torch.Tensor  # (n,) bool
+    collision: torch.Tensor  # (n,) bool, a trunk/hip/thigh/calf geom touches anything (a fall)
     touchdown: torch.Tensor  # (n, 4) bool, foot made contact this step
     t_air_s: torch.Tensor  # (n, 4) length of the air phase that ended at touchdown, s

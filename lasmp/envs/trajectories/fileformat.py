@@ -16,7 +16,7 @@ Optional ``meta_json``: a JSON string (e.g. split and seed), available as ``traj
 A motion far outside any platform's physical range (a waypoint 1,000 km away, a whole path in a
 tenth of a second) is refused, and one well beyond the hardest we know is warned about
 (:func:`check_physical`, ``PHYSICAL_RANGE``).
-Version 1 files (the old interpolating-only generator, which recorded no construction) are
+Version 1 files (interpolating-cubic waypoints, with no record of the spline construction) are
 refused with an error that says how to regenerate them.
 
 :func:`read_npz`, :func:`check_version`, :func:`waypoint_arrays` and :func:`waypoints_from_arrays`
@@ -253,7 +253,7 @@ def check_version(get, path: str, expected: int, error: type[Exception], regener
         raise error(f"{path}: 'version' must be an integer scalar, got {version.dtype} {version.shape}")
     if int(version) != expected:
         hint = (
-            " Version 1 files hold the old interpolating-cubic waypoints with no record of the spline "
+            " Version 1 files hold interpolating-cubic waypoints with no record of the spline "
             "construction; they cannot be read as today's approximating B-splines."
             if int(version) < expected
             else ""

@@ -21,7 +21,8 @@ from omegaconf import OmegaConf
 
 from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import CheckpointError
-from lasmp.algo.runner import LasmpRunner, TrainingFaulted, TrainingInterrupted
+from lasmp.algo.runner import LasmpRunner
+from lasmp.algo.stopping import TrainingFaulted, TrainingInterrupted
 from lasmp.atomic import AtomicWriteError, atomic_open
 from lasmp.config import ConfigError
 from lasmp.envs import registry

@@ -24,16 +24,9 @@ NONE_YET = "\u2013"  # a progress field with no value yet
 class OneLineLogger(LoggerCompat):
     """TensorBoard scalars as rsl_rl's logger writes them, but one terminal line per iteration."""
 
-    step_done = None  # callback() after each env-step of a rollout (the runner's fault check)
-    iteration_done = None  # callback(it) after each iteration's log (the runner's interruption check)
     # this iteration's env-steps whose physics faulted (the runner sets it)
     iteration_faults: int | None = None
     _timed_s, _timed = 0.0, 0  # the seconds and the count of this command's iterations after its first
-
-    def process_env_step(self, rewards, dones, extras, intrinsic_rewards=None) -> None:
-        super().process_env_step(rewards, dones, extras, intrinsic_rewards)
-        if self.step_done is not None:
-            self.step_done()
 
     def log(
         self,
@@ -48,11 +41,7 @@ class OneLineLogger(LoggerCompat):
         rnd_weight,
         **kwargs,
     ) -> None:
-        try:
-            self._log(it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std)
-        finally:
-            if self.iteration_done is not None:
-                self.iteration_done(it)
+        self._log(it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std)
 
     def _log(
         self, it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, action_std

@@ -3,37 +3,12 @@
 
 - Divergence: the learner's update raises `FloatingPointError` on a non-finite loss or parameter
   (`PPOROA`'s guard), and `save` refuses to write a non-finite checkpoint, so the last good one stays.
-- Faults: each iteration counts the env-steps whose physics faulted (the env's `fault_count`; the
-  progress line shows them); more than `max_fault_fraction` of an iteration's env-steps raises
-  `TrainingFaulted` during its rollout, before its update, naming the cause.
-- Interruption: SIGINT (Ctrl-C) or SIGTERM during `learn` stops it within one env-step and raises
-  `TrainingInterrupted` (the caller prints the resume command). Signalled during an update (or in a
-  torchrun job, whose ranks can only agree at an iteration's end), the iteration finishes and
-  `model_<it>.pt` is written: its resume is exact. Signalled during a rollout, the rollout is
-  abandoned (no update has used it) and the state of the last completed iteration `it - 1` is kept:
-  where `model_<it-1>.pt` is in the run directory already, it is the checkpoint (exact, nothing is
-  written); otherwise `model_<it-1>.pt` is written with the networks and optimizers of iteration
-  `it - 1` and the envs' state of the moment the rollout stopped, marked `abandoned_rollout`: the
-  resume says that it is not exact (the envs had run some steps of iteration `it`, and the observation
-  normalizers, if any, had seen them). Before any iteration completed nothing is saved. A second
-  signal ends the process at once with 128 + signal (130 / 143) and one line, without a checkpoint
-  (`_exit_now`). A rank of
-  a torchrun job that leaves `learn` on an exception ignores both signals from then on: the process
-  is ending, and its report must not be cut by torchrun's agent terminating the ranks left.
-- Where the fault guard and the interruption fire: inside rsl_rl's `OnPolicyRunner.learn`, from
-  its logger (`OneLineLogger`).
-  The loop calls `logger.process_env_step` after every env-step of a rollout (then `_check_faults`)
-  and `logger.log` after every update (then `_after_iteration`, which saves and raises on a signal,
-  before rsl_rl's own save of that iteration). These are the loop's only calls, per step and per
-  iteration, into an object the runner chooses; rsl_rl offers no hook, and overriding `learn`
-  would copy its loop.
-- Validation (ours): after every `validation_interval`-th iteration (its number + 1 a multiple), a
-  validator (built by the caller: `lasmp.eval.validation.Validator`) scores the current actor on the
-  validation benchmark. The runner logs `Val/*` (TensorBoard and a console line), rewrites the run's
-  `validation.json` (every score with its env-steps and wall-clock seconds, and the best) and keeps
-  `policy_best.pt`, the policy checkpoint of the best score (the lowest collision rate, the height
-  violation the tie-break), rewritten only on an improvement. The scores and the best travel in every
-  checkpoint, so a resume goes on from the best so far.
+- The loop (`_learn_loop`) is rsl_rl's `OnPolicyRunner.learn`, step for step (the same calls in the
+  same order, so a seeded run repeats its curve), with the runner's own steps in it: after every
+  env-step of a rollout `_after_env_step` (the fault guard; a stop asked for abandons the rollout),
+  after every iteration's log `_after_iteration` (validation; a stop saves and raises), then the
+  checkpoint schedule. The logger only logs.
+- Stopping early (a signal, physics faults): lasmp/algo/stopping.py; validation: lasmp/algo/validating.py.
 - Disk: after each save into the run directory the newest `keep_full` full checkpoints stay, older
   ones become policy checkpoints (`keep_newest_full`), and a line names them.
 - Console (`lasmp.algo.console`): one line per network instead of rsl_rl's printout of every layer,
@@ -42,17 +17,15 @@
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import os
 import signal
-import sys
 import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
+from rsl_rl.utils import check_nan
 
 from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import (
@@ -64,19 +37,15 @@ from lasmp.algo.checkpoint import (
     keep_newest_full,
     not_fitting,
     obs_layout,
-    policy_only,
     read_checkpoint,
     refuse_policy_only,
     rng_state,
     set_rng_state,
 )
 from lasmp.algo.console import OneLineLogger, network_line, without_network_printout
-from lasmp.atomic import atomic_open
+from lasmp.algo.stopping import INTERRUPT_SIGNALS, RolloutAbandoned, StoppingMixin, TrainingInterrupted
+from lasmp.algo.validating import ValidatingMixin
 from lasmp.rsl_compat import OnPolicyRunnerCompat
-
-INTERRUPT_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-BEST_POLICY = "policy_best.pt"  # the run's policy of the best validation score
-VALIDATION_FILE = "validation.json"  # the run's validation curve
 
 
 def _array_bytes(obj, seen: set[int] | None = None) -> int:
@@ -98,26 +67,7 @@ def _array_bytes(obj, seen: set[int] | None = None) -> int:
     return 0
 
 
-class TrainingInterrupted(Exception):
-    """Training stopped on a signal after iteration `iteration` (-1: none completed), saved to
-    `checkpoint` (None: nothing saved); `how` replaces the default account of what was kept."""
-
-    def __init__(self, signum: int, iteration: int, checkpoint: str | None, how: str | None = None):
-        self.signum, self.iteration, self.checkpoint = signum, iteration, checkpoint
-        name = signal.Signals(signum).name
-        default = f", saved {checkpoint}" if checkpoint else " (no log_dir: nothing saved)"
-        super().__init__(f"{name} received: stopped after iteration {iteration}" + (how or default))
-
-
-class _RolloutAbandoned(Exception):
-    """Raised from the rollout loop (after an env-step) when a stop was asked for: caught by `learn`."""
-
-
-class TrainingFaulted(RuntimeError):
-    """Too many of an iteration's env-steps faulted (the physics diverged); the message says how many."""
-
-
-class LasmpRunner(OnPolicyRunnerCompat):
+class LasmpRunner(StoppingMixin, ValidatingMixin, OnPolicyRunnerCompat):
     """`OnPolicyRunner` + checkpoints with config, layout, env and random state; fault guard;
     checkpoint on SIGINT / SIGTERM."""
 
@@ -157,8 +107,6 @@ class LasmpRunner(OnPolicyRunnerCompat):
         )
         self._final_iteration = -1  # the last iteration of the current learn()
         self._other_ranks: list | None = None  # rank 0: the other ranks' running state for the next save
-        self.logger.step_done = self._check_faults
-        self.logger.iteration_done = self._after_iteration
         self._signal: int | None = None
         self._under_way = 0  # the iteration whose rollout or update is under way
         self._rollout_steps = 0  # the env-steps of its rollout so far
@@ -231,119 +179,6 @@ class LasmpRunner(OnPolicyRunnerCompat):
             "episode_log_state": None,
         }
 
-    # -- fault guard ------------------------------------------------------------------------------
-    def _check_faults(self) -> None:
-        """After each env-step of a rollout: count the iteration's faulted env-steps so far for the
-        progress line; stop as soon as they pass the threshold (the count only grows in a rollout).
-        A stop asked for (a signal) abandons the rollout here, alone (a torchrun job's ranks stop
-        together at the iteration's end)."""
-        self._rollout_steps += 1
-        if self._signal is not None and not self.is_distributed:
-            raise _RolloutAbandoned()
-        count = getattr(self.env, "fault_count", None)
-        if count is None:
-            return
-        faults = count - self._faults_before
-        self.logger.iteration_faults = faults
-        steps = self.cfg["num_steps_per_env"] * self.env.num_envs
-        if faults > self.max_fault_fraction * steps:
-            raise TrainingFaulted(
-                f"physics faults: {faults:,} of the {steps:,} env-steps of iteration {self.alg.iteration} "
-                f"faulted ({faults / steps:.0%}, more than runner.max_fault_fraction={self.max_fault_fraction}). The "
-                "simulation diverges (MuJoCo errors or warnings, non-finite state, runaway joints): check "
-                "env.sim.dt_s, env.control.action_scale, the trajectory file and the robots' parameters "
-                "(runner.max_fault_fraction=1 trains on regardless). Stopped before this iteration's update; "
-                "the last saved checkpoint is intact."
-            )
-
-    # -- interruption ------------------------------------------------------------------------------
-    # in a torchrun job, a signal this soon after the first is its echo (torchrun forwards SIGTERM twice,
-    # and a Ctrl-C reaches a rank from the terminal and from the agent); alone, every second one counts
-    REPEAT_WINDOW_S = 2.0
-
-    def _on_signal(self, signum, _frame) -> None:
-        if self._signal is not None:
-            if self.is_distributed and time.monotonic() - self._signal_time_s < self.REPEAT_WINDOW_S:
-                return  # torchrun's echo of the first signal to every rank, not a second one
-            # a second signal: stop now, without a checkpoint
-            print(
-                f"\n{signal.Signals(signum).name} again: stopped at once, without a checkpoint (the last "
-                "saved one is intact)",
-                file=sys.stderr,
-                flush=True,
-            )
-            self._exit_now(128 + signum)
-        self._signal, self._signal_time_s = signum, time.monotonic()
-        print(
-            f"\n{signal.Signals(signum).name}: stopping, then saving a checkpoint (send it again to abort at once)",
-            flush=True,
-        )
-
-    @staticmethod
-    def _exit_now(code: int) -> None:
-        """End the process with `code` at once: `os._exit`, after flushing the console. Why not an
-        exception (SystemExit, KeyboardInterrupt): the handler runs wherever the main thread is, and
-        the most likely place for a second signal is inside torch.save of a large checkpoint, whose
-        zip writer turns any exception of its Python file's write into `RuntimeError` (a traceback,
-        exit 1); an `except` on the way could also catch it or add to it. `os._exit` runs no
-        handler, so nothing can print after the handler's line. A checkpoint being written is left
-        as its hidden temporary file (`.model_<it>.pt.*.tmp`), never under its final name (the
-        write renames only a complete file); the next command that holds the run directory removes
-        it (`lasmp.atomic.remove_stale_temporaries`, when `lasmp.rundir` claims the directory)."""
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except Exception:  # a closed or broken console must not keep the process alive
-                pass
-        os._exit(code)
-
-    # -- validation -------------------------------------------------------------------------------
-    def wall_s(self) -> float:
-        """The run's training seconds so far: its earlier commands' (from the checkpoint) and this one's."""
-        now = 0.0 if self._learn_start_s is None else time.perf_counter() - self._learn_start_s
-        return self._wall_before_s + now
-
-    def _validate_if_due(self, it: int) -> None:
-        """Score the policy of iteration `it` when due; log it, record it, keep the best policy."""
-        interval = self.validation_interval
-        if interval <= 0 or (it + 1) % interval:
-            return
-        score = self.validator(
-            it, self.alg.actor.state_dict(), obs_layout(self.env.get_observations()), self.env.num_actions
-        )
-        env_steps = (it + 1) * self.cfg["num_steps_per_env"] * self.env.num_envs * self.gpu_world_size
-        record = {**dataclasses.asdict(score), "env_steps": env_steps, "wall_s": round(self.wall_s(), 3)}
-        improved = self.validation_best is None or score.key() < tuple(
-            self.validation_best[k] for k in ("collision_rate", "height_violation_rate")
-        )
-        self.validation_history.append(record)
-        if improved:
-            self.validation_best = record
-        run_dir = self.logger.log_dir
-        if run_dir is not None:
-            if improved:
-                data = self.checkpoint_data(None, str(Path(run_dir) / BEST_POLICY), run_state=False)
-                source = f"iteration {it}, the best validation score so far"
-                atomic_torch_save(policy_only(data, source), Path(run_dir) / BEST_POLICY)
-            with atomic_open(Path(run_dir) / VALIDATION_FILE, "w") as f:
-                json.dump({"best": self.validation_best, "history": self.validation_history}, f, indent=1)
-        writer = self.logger.writer
-        if writer is not None:
-            for name in ("collision_rate", "height_violation_rate", "world_tilt_rad"):
-                writer.add_scalar(f"Val/{name}", record[name], it)
-        best = self.validation_best
-        print(
-            f"validation it {it}: collision {score.collision_rate:.3f} | height {score.height_violation_rate:.3f}"
-            f" | tilt {score.world_tilt_rad:.3f} rad | "
-            + (
-                f"new best, {BEST_POLICY}"
-                if improved
-                else f"best {best['collision_rate']:.3f} (it {best['iteration']})"
-            )
-            + f" | {score.seconds:.1f} s",
-            flush=True,
-        )
-
     def _after_iteration(self, it: int) -> None:
         self._under_way, self._rollout_steps = it + 1, 0
         self._faults_before = getattr(self.env, "fault_count", 0)  # the next rollout's faults count from here
@@ -360,7 +195,7 @@ class LasmpRunner(OnPolicyRunnerCompat):
         raise TrainingInterrupted(stop, it, path)
 
     def learn(self, num_learning_iterations: int, init_at_random_ep_len: bool = False) -> None:
-        """rsl_rl's loop; SIGINT / SIGTERM (main thread only) end it after the current iteration with a
+        """The training loop (`_learn_loop`); SIGINT / SIGTERM (main thread only) end it after the current iteration with a
         checkpoint and `TrainingInterrupted`."""
         previous = {}
         if threading.current_thread() is threading.main_thread():
@@ -372,8 +207,8 @@ class LasmpRunner(OnPolicyRunnerCompat):
         self._faults_before = getattr(self.env, "fault_count", 0)
         try:
             try:
-                super().learn(num_learning_iterations, init_at_random_ep_len)
-            except _RolloutAbandoned:
+                self._learn_loop(num_learning_iterations, init_at_random_ep_len)
+            except RolloutAbandoned:
                 self._stop_in_rollout()
         except BaseException:
             if self.is_distributed and previous:
@@ -387,28 +222,58 @@ class LasmpRunner(OnPolicyRunnerCompat):
                 signal.signal(s, handler)
             self._wall_before_s, self._learn_start_s = self.wall_s(), None
 
-    def _stop_in_rollout(self) -> None:
-        """A signal during the rollout of iteration `self._under_way`: keep the state of the last
-        completed one (see the module's docstring) and raise `TrainingInterrupted`."""
-        it, done = self._under_way, self._under_way - 1
-        during = f" (during iteration {it}'s rollout, {self._rollout_steps} env-steps in, abandoned)"
-        run_dir = self.logger.log_dir
-        if done < 0 or run_dir is None:
-            how = "; no iteration completed: nothing saved" if done < 0 else " (no log_dir: nothing saved)"
-            raise TrainingInterrupted(self._signal, done, None, during + how)
-        path = Path(run_dir) / f"model_{done}.pt"
-        if path.is_file():  # iteration done's own checkpoint: its resume is exact
+    def _learn_loop(self, num_learning_iterations: int, init_at_random_ep_len: bool) -> None:
+        """rsl_rl's `OnPolicyRunner.learn` (the module's docstring), with the runner's steps named.
+        Not supported here: rsl_rl's RND (the intrinsic rewards it logs)."""
+        if init_at_random_ep_len:
+            self.env.episode_length_buf = torch.randint_like(
+                self.env.episode_length_buf, high=int(self.env.max_episode_length)
+            )
+        obs = self.env.get_observations().to(self.device)
+        self.alg.train_mode()
+        if self.is_distributed:
+            print(f"Synchronizing parameters for rank {self.gpu_global_rank}...")
+            self.alg.broadcast_parameters()
+        self.logger.init_logging_writer()
+        start_it = self.current_learning_iteration
+        total_it = start_it + num_learning_iterations
+        for it in range(start_it, total_it):
+            start = time.time()
+            with torch.inference_mode():
+                for _ in range(self.cfg["num_steps_per_env"]):
+                    actions = self.alg.act(obs)
+                    obs, rewards, dones, extras = self.env.step(actions.to(self.env.device))
+                    if self.cfg.get("check_for_nan", True):
+                        check_nan(obs, rewards, dones)
+                    obs, rewards, dones = obs.to(self.device), rewards.to(self.device), dones.to(self.device)
+                    self.alg.process_env_step(obs, rewards, dones, extras)
+                    self.logger.process_env_step(rewards, dones, extras, None)
+                    self._after_env_step()
+                stop = time.time()
+                collect_time, start = stop - start, stop
+                self.alg.compute_returns(obs)
+            loss_dict = self.alg.update()
+            learn_time = time.time() - start
+            self.current_learning_iteration = it
+            try:
+                self.logger.log(
+                    it=it,
+                    start_it=start_it,
+                    total_it=total_it,
+                    collect_time=collect_time,
+                    learn_time=learn_time,
+                    loss_dict=loss_dict,
+                    learning_rate=self.alg.learning_rate,
+                    action_std=self.alg.get_policy().output_std,
+                    rnd_weight=None,
+                )
+            finally:  # a stop asked for is honoured even if the log failed
+                self._after_iteration(it)
+            if self.logger.writer is not None and it % self.cfg["save_interval"] == 0:
+                self.save(os.path.join(self.logger.log_dir, f"model_{it}.pt"))
+        if self.logger.writer is not None:
+            self.save(os.path.join(self.logger.log_dir, f"model_{self.current_learning_iteration}.pt"))
             self.logger.stop_logging_writer()
-            raise TrainingInterrupted(self._signal, done, str(path), f"{during}; its checkpoint is {path}")
-        self.current_learning_iteration = done
-        self._abandoned = {"iteration": it, "env_steps": self._rollout_steps}
-        try:
-            self.save(str(path))
-        finally:
-            self._abandoned = None
-        self.logger.stop_logging_writer()
-        how = f"{during}; saved {path} (iteration {done}, with the envs' state of the stop: not an exact resume)"
-        raise TrainingInterrupted(self._signal, done, str(path), how)
 
     # -- checkpoints -------------------------------------------------------------------------------
     def save(self, path: str, infos: dict | None = None) -> None:

@@ -10,7 +10,8 @@ import pytest
 import torch
 from testkit import tiny
 
-from lasmp.algo.runner import BEST_POLICY, VALIDATION_FILE, LasmpRunner
+from lasmp.algo.runner import LasmpRunner
+from lasmp.algo.validating import BEST_POLICY, VALIDATION_FILE
 from lasmp.eval import benchmark as bm
 from lasmp.eval.validation import Score, Validator
 from lasmp.train import make_env, make_runner, make_validator

@@ -88,7 +88,7 @@ def _entry(cfg, overrides: list[str]) -> int:
         return lt.main(cfg, overrides)
     # an older train.py, without main(): its train(cfg)
     from lasmp.algo.checkpoint import CheckpointError
-    from lasmp.algo.runner import TrainingInterrupted
+    from lasmp.algo.stopping import TrainingInterrupted
     from lasmp.config import ConfigError
 
     try:

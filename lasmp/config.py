@@ -306,6 +306,8 @@ MAX_JOINT_VEL = Bound(
     "rad/s: 1000 is 50 times the A1's motors' speed, a diverged state; tiny faults every step",
     open_lo=True,
 )
+# the physics backends, each made by lasmp.envs.backends.make_backend (`env.backend`)
+BACKENDS = ("cpu", "warp")
 # a million envs: about 100 GiB at their ~100 KiB each (the memory check refuses fewer that do not fit)
 MAX_ENVS = 1 << 20
 
@@ -326,8 +328,9 @@ class BaseEnvCfg:
         check_finite_values(self, p)
         Bound(1, MAX_ENVS, "a million envs take ~100 GiB").check(f"{p}.num_envs", self.num_envs, integer=True)
         check_seed_key(f"{p}.seed", self.seed)
-        if self.backend not in ("cpu", "warp"):
-            raise ConfigError(f"{p}.backend must be 'cpu' or 'warp', got {self.backend!r}")
+        if self.backend not in BACKENDS:
+            names = " or ".join(map(repr, BACKENDS))
+            raise ConfigError(f"{p}.backend must be {names}, got {self.backend!r}")
         for f in fields(self):
             value = getattr(self, f.name)
             if is_dataclass(value):
@@ -344,11 +347,17 @@ def build_env_cfg(overrides: Mapping[str, Any] | None = None, *, schema: type[En
     Unknown keys raise `ConfigError` naming the key; values are type-checked by OmegaConf. This is where
     an env config is validated: the envs take the dataclass only and do not validate it again.
     """
+    cfg = merge_env_cfg(overrides, schema=schema)
+    cfg.validate()
+    return cfg
+
+
+def merge_env_cfg(overrides: Mapping[str, Any] | None = None, *, schema: type[EnvCfgT]) -> EnvCfgT:
+    """`build_env_cfg` less its validation: for `lasmp.train_cfg.to_train_cfg`, which validates the env
+    with the rest of the training config (once)."""
     base = OmegaConf.structured(schema)
     try:
         merged = OmegaConf.merge(base, OmegaConf.create(overrides or {}))
     except Exception as err:  # omegaconf's ConfigKeyError / ValidationError carry the full key
         raise ConfigError(f"invalid environment config: {err}") from err
-    cfg = OmegaConf.to_object(merged)
-    cfg.validate()
-    return cfg
+    return OmegaConf.to_object(merged)

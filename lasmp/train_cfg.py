@@ -22,11 +22,11 @@ from lasmp.algo.symmetry import supports_mirror
 from lasmp.config import (
     Bound,
     ConfigError,
-    build_env_cfg,
     check_bounds,
     check_finite_values,
     check_known_keys,
     check_seed_key,
+    merge_env_cfg,
 )
 from lasmp.envs import registry
 from lasmp.envs.registry import env_schema
@@ -368,7 +368,7 @@ def to_train_cfg(cfg) -> TrainCfg:
     if not isinstance(cfg, TrainCfg):
         cfg = OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(TrainCfg), cfg))
     if not is_dataclass(cfg.env):
-        cfg.env = build_env_cfg(dict(cfg.env or {}), schema=env_schema(cfg.task))
+        cfg.env = merge_env_cfg(dict(cfg.env or {}), schema=env_schema(cfg.task))  # validated below
     cfg.env.seed = cfg.seed
     validate_train_cfg(cfg)
     return cfg

@@ -64,11 +64,8 @@ class Rung:
         save = min(50, self.validation_interval)
         cmd += [f"runner.validation_interval={self.validation_interval}", f"runner.save_interval={save}"]
         cmd += [f"runner.log_dir={run_dir}", f"runner.max_iterations={iterations}"]
-        return (
-            cmd
-            + ([f"resume={run_dir}"] if resume else [])
-            + ([f"warm_start={warm_start}"] if warm_start else [])
-        )
+        cmd += [f"resume={run_dir}"] if resume else []
+        return cmd + ([f"warm_start={warm_start}"] if warm_start else [])
 
 
 RUNGS = {

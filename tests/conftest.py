@@ -67,21 +67,22 @@ def default_signal_handlers():
 def study(tmp_path, monkeypatch):
     """scripts/study.py as a module on a constructed tree under tmp_path: the commands it would run
     recorded in `study.ran` (not run), the real ones kept as `real_execute` and `real_check_learner`
-    (tests/test_study_*.py)."""
-    from testkit import load_script
+    (tests/test_study_*.py). Its modules read as one namespace (testkit.Study), each name set in the
+    module that defines it: the paths in studylib.plan, the commands in studylib.runs."""
+    from testkit import Study
 
-    mod = load_script("scripts/study.py")
-    monkeypatch.setattr(mod, "ROOT", tmp_path)
-    monkeypatch.setattr(mod, "RUNS", tmp_path / "runs" / "study")
-    monkeypatch.setattr(mod, "RESULTS", tmp_path / "results" / "study")
-    monkeypatch.setattr(mod, "FIRST_PASS", tmp_path / "results" / "study" / "entropy_0.01")
-    monkeypatch.setattr(mod, "STAND_STILL", tmp_path / "results" / "study" / "stand_still" / "seed0")
+    mod = Study()
+    monkeypatch.setattr(mod.plan, "ROOT", tmp_path)
+    monkeypatch.setattr(mod.plan, "RUNS", tmp_path / "runs" / "study")
+    monkeypatch.setattr(mod.plan, "RESULTS", tmp_path / "results" / "study")
+    monkeypatch.setattr(mod.plan, "FIRST_PASS", tmp_path / "results" / "study" / "entropy_0.01")
+    monkeypatch.setattr(mod.plan, "STAND_STILL", tmp_path / "results" / "study" / "stand_still" / "seed0")
     ran = []
     mod.real_execute = mod.execute
-    monkeypatch.setattr(mod, "execute", lambda cmd, log: ran.append(cmd[1:]))
-    monkeypatch.setattr(mod, "record_run", lambda *a: None)
+    monkeypatch.setattr(mod.runs, "execute", lambda cmd, log: ran.append(cmd[1:]))
+    monkeypatch.setattr(mod.runs, "record_run", lambda *a: None)
     mod.real_check_learner = mod.check_learner
-    monkeypatch.setattr(mod, "check_learner", lambda cpuinfo=None: None)  # CI's CPU may lack bfloat16
+    monkeypatch.setattr(mod.runs, "check_learner", lambda cpuinfo=None: None)  # CI's CPU may lack bfloat16
     mod.ran = ran
     return mod
 

@@ -10,7 +10,7 @@ import sys
 
 import pytest
 import torch
-from testkit import ROOT, load_script
+from testkit import ROOT, Study
 
 
 def test_each_command_is_logged_with_its_time_and_commit_before_it_runs(study, tmp_path):
@@ -34,7 +34,7 @@ def test_a_failed_training_ends_the_study_with_its_status_and_is_not_added_to_th
 ):
     """The committed .commands file says how the committed results were made: a training that failed
     made none. The uncommitted log beside the run keeps it, with every command tried."""
-    monkeypatch.setattr(study, "execute", study.real_execute)
+    monkeypatch.setattr(study.runs, "execute", study.real_execute)
     (tmp_path / "train.py").write_text("raise SystemExit(2)  # as train.py refusing its configuration\n")
     committed = tmp_path / "results" / "study" / "lasmp" / "seed0.commands"
     committed.parent.mkdir(parents=True)
@@ -71,12 +71,14 @@ def test_a_ctrl_c_during_training_waits_for_its_save_and_ends_the_study_with_its
     study = (
         "import importlib.util, sys\n"
         "from pathlib import Path\n"
+        f"sys.path.insert(0, {str(ROOT / 'scripts')!r})  # as `python scripts/study.py` does\n"
+        "from studylib import plan, runs\n"
         f"spec = importlib.util.spec_from_file_location('study', {str(ROOT / 'scripts' / 'study.py')!r})\n"
         "study = importlib.util.module_from_spec(spec)\n"
         "spec.loader.exec_module(study)\n"
-        f"study.ROOT = Path({str(tmp_path)!r})\n"
-        "study.RUNS, study.RESULTS = study.ROOT / 'runs' / 'study', study.ROOT / 'results' / 'study'\n"
-        "study.check_learner = lambda: None  # this CPU may lack bfloat16\n"
+        f"plan.ROOT = Path({str(tmp_path)!r})\n"
+        "plan.RUNS, plan.RESULTS = plan.ROOT / 'runs' / 'study', plan.ROOT / 'results' / 'study'\n"
+        "runs.check_learner = lambda: None  # this CPU may lack bfloat16\n"
         "study.main(['train', 'lasmp', '0'])\n"
     )
     done = subprocess.run(  # a session of its own: the Ctrl-C reaches this one and its child, not pytest
@@ -97,10 +99,10 @@ def test_a_recorded_run_keeps_its_policy_in_the_light_form_beside_its_config_and
     from lasmp.light_checkpoint import LIGHT_KIND
     from lasmp.train import train
 
-    mod = load_script("scripts/study.py")
-    monkeypatch.setattr(mod, "ROOT", tmp_path)
-    monkeypatch.setattr(mod, "RUNS", tmp_path / "runs" / "study")
-    monkeypatch.setattr(mod, "RESULTS", tmp_path / "results" / "study")
+    mod = Study()  # scripts/study.py's modules, each name set where it is read
+    monkeypatch.setattr(mod.plan, "ROOT", tmp_path)
+    monkeypatch.setattr(mod.plan, "RUNS", tmp_path / "runs" / "study")
+    monkeypatch.setattr(mod.plan, "RESULTS", tmp_path / "results" / "study")
     train(tiny(mod.run_dir("lasmp_plus", 0), plain=True))  # 2 iterations: model_1.pt
     mod.record_run("lasmp_plus", 0, 2)
     out = mod.result_dir("lasmp_plus", 0, 2)

@@ -109,7 +109,7 @@ def test_on_a_fresh_machine_a_run_with_a_committed_policy_is_evaluated_from_it_n
 
 
 def test_las_mp_plus_and_its_ablations_train_to_their_own_budget_resuming_a_shorter_run(study, monkeypatch):
-    monkeypatch.setattr(study, "PLUS_BUDGET", 1000)
+    monkeypatch.setattr(study.plan, "PLUS_BUDGET", 1000)
     plus = [(m, s, n) for kind, m, s, n in study.steps() if kind == "train" and m in study.PLUS_METHODS]
     assert len(plus) == 15 + 3 and {n for _, _, n in plus} == {1000}
     assert ("lasmp", 0, 450) in [(m, s, n) for _, m, s, n in study.steps()]  # the paper's runs keep theirs
@@ -150,7 +150,7 @@ def test_every_run_trains_with_the_bfloat16_learner_and_a_cpu_without_it_is_refu
     from lasmp.algo import precision
 
     monkeypatch.setattr(precision, "cpu_has_fast_bf16", lambda cpuinfo=None: False)
-    monkeypatch.setattr(study, "check_learner", study.real_check_learner)
+    monkeypatch.setattr(study.runs, "check_learner", study.real_check_learner)
     with pytest.raises(SystemExit, match="20 times slower"):
         study.train("rs", 1)
     assert len(study.ran) == 1  # refused before it ran

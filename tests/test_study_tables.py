@@ -194,7 +194,7 @@ def test_compare_tabulates_both_learners_of_the_first_pass_per_seed_from_their_c
 ):
     from lasmp.eval import episodes as ep
 
-    monkeypatch.setattr(study, "FLOAT32_EPISODES", 20)
+    monkeypatch.setattr(study.tables, "FLOAT32_EPISODES", 20)
 
     def evaluated_episodes(method, seed, collided_first_20):
         t = {c: np.zeros(24) for c in ep.COLUMNS}

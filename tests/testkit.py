@@ -87,10 +87,45 @@ def hostile_checkpoint(path: Path, marker: Path) -> Path:
 def load_script(path: str) -> ModuleType:
     """A script of the repository (`path` from its root, e.g. "bench/friction_cone.py") as a fresh
     module: the scripts are not a package, and each load runs the file anew."""
+    folder = str((ROOT / path).parent)  # first on sys.path, as `python SCRIPT` puts it: a script's
+    if folder not in sys.path:  # sibling modules (scripts/studylib/) import by their bare names
+        sys.path.insert(0, folder)
     spec = importlib.util.spec_from_file_location(Path(path).stem + "_script", ROOT / path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+class Study:
+    """scripts/study.py and its modules (scripts/studylib/) read as one namespace, as the script was one
+    file: `study.result_dir` is plan's, `study.train` runs'. A name is set (monkeypatch.setattr) in the
+    module that defines it, where the study's functions read it: `study.plan` (the paths, the budgets),
+    `study.runs` (`execute`, `check_learner`), `study.tables`; setting one here is refused, lest it be
+    a copy nothing reads. A name no module has (the `study` fixture's `ran`) is kept here."""
+
+    def __init__(self):
+        cli = load_script("scripts/study.py")  # which puts scripts/ on sys.path: studylib imports
+        self.plan, self.runs, self.tables = (
+            importlib.import_module(f"studylib.{name}") for name in ("plan", "runs", "tables")
+        )
+        self.cli = cli
+
+    def _owner(self, name: str) -> ModuleType | None:
+        # the defining module first: runs and tables import from plan, study.py from all three
+        modules = (self.plan, self.runs, self.tables, self.cli)
+        return next((m for m in modules if name in vars(m)), None)
+
+    def __getattr__(self, name: str):
+        owner = None if name in ("plan", "runs", "tables", "cli") else self._owner(name)
+        if owner is None:
+            raise AttributeError(name)
+        return getattr(owner, name)
+
+    def __setattr__(self, name: str, value) -> None:
+        if name in ("plan", "runs", "tables", "cli") or self._owner(name) is None:
+            object.__setattr__(self, name, value)
+        else:
+            raise AttributeError(f"set {name} in {self._owner(name).__name__}, where the study reads it")
 
 
 # the tiny training as train.py's command-line overrides: 4 envs, 15-step episodes (the first end in

@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from lasmp.envs.moving_platform.cfg import CurriculumCfg
+
 
 class WaypointCurriculum:
     """Success-rate-driven scheduler of the number of waypoints N."""
@@ -32,16 +34,10 @@ class WaypointCurriculum:
         window_episodes: int = 200,
         replay_lower_fraction: float = 0.2,
     ) -> None:
-        if int(level_min) != level_min or level_min < 1:
-            raise ValueError(f"level_min must be an integer ≥ 1, got {level_min}")
-        if int(level_max) != level_max or level_max < level_min:
-            raise ValueError(f"level_max must be an integer ≥ level_min, got {level_max}")
-        if not (0.0 < promote_success_rate <= 1.0):
-            raise ValueError(f"promote_success_rate must be in (0, 1], got {promote_success_rate}")
-        if int(window_episodes) != window_episodes or window_episodes < 1:
-            raise ValueError(f"window_episodes must be an integer ≥ 1, got {window_episodes}")
-        if not (0.0 <= replay_lower_fraction < 1.0):
-            raise ValueError(f"replay_lower_fraction must be in [0, 1), got {replay_lower_fraction}")
+        # the config's rules (CurriculumCfg.validate, ConfigError: a ValueError), one place for them
+        CurriculumCfg(
+            True, level_min, level_max, promote_success_rate, window_episodes, replay_lower_fraction
+        ).validate("curriculum")
         self.level_min = int(level_min)
         self.level_max = int(level_max)
         self.promote_success_rate = float(promote_success_rate)

@@ -361,3 +361,13 @@ def merge_env_cfg(overrides: Mapping[str, Any] | None = None, *, schema: type[En
     except Exception as err:  # omegaconf's ConfigKeyError / ValidationError carry the full key
         raise ConfigError(f"invalid environment config: {err}") from err
     return OmegaConf.to_object(merged)
+
+
+def flatten(tree, prefix: str = "") -> dict:
+    """{"a.b": leaf} of nested dicts (lists are leaves)."""
+    if not isinstance(tree, dict):
+        return {prefix: tree}
+    out = {}
+    for key, value in tree.items():
+        out.update(flatten(value, f"{prefix}.{key}" if prefix else str(key)))
+    return out

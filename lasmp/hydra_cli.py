@@ -11,13 +11,20 @@ naming the jobs that did not run."""
 
 from __future__ import annotations
 
+import contextlib
 import re
+import shlex
 import sys
 import traceback
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from lasmp.config import flatten
 from lasmp.hydra_compat import args_parser, basic_sweep_jobs
+
+if TYPE_CHECKING:
+    from hydra.plugins.config_source import ConfigResult
 
 
 def _compose(config_dir: Path, config_name: str, overrides: list[str]):
@@ -166,3 +173,88 @@ class Sweep:
             flush=True,
         )
         return next(iter(self.failed.values()))
+
+
+# -- what a command line sets, and the command that continues a run -------------------------------
+CFG_DIR = Path(__file__).resolve().parents[1] / "cfg"
+
+
+def explicit_keys(overrides: list[str]) -> set[str]:
+    """The config keys a command line sets, read from its overrides as Hydra parsed them: `key=value`
+    (`+key=`, `~key`) names its key; a group option (`task=`, `policy=`, `preset=`, `env=`) stands
+    for the keys its own config sets, under its package (preset=paper: device, env.num_envs and
+    runner.max_iterations; task=rough_static: task). Nothing is composed: each option's config is
+    read alone, from the config sources Hydra composed with."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    keys: set[str] = set()
+    with _config_sources() as sources:
+        for override in OverridesParser.create().parse_overrides(overrides):
+            name, option = override.key_or_group, override.value()
+            path = f"{name}/{option}"
+            source = next((s for s in sources if isinstance(option, str) and s.is_config(path)), None)
+            keys |= _option_keys(source.load_config(path), name) if source else {name}
+    return keys
+
+
+def _option_keys(option: ConfigResult, group: str) -> set[str]:
+    """The keys a group option's config sets, under its package (Hydra's default: the group's node)."""
+    package = option.header.get("package")
+    if package in (None, "_group_"):
+        package = group.replace("/", ".")
+    package = package.removeprefix("_global_").lstrip(".")
+    from omegaconf import OmegaConf
+
+    content = OmegaConf.to_container(option.config)
+    content.pop("defaults", None)  # the other options it selects, not keys it sets
+    return {f"{package}.{key}" if package else key for key in flatten(content)}
+
+
+@contextlib.contextmanager
+def _config_sources():
+    """Hydra's config sources: those of the app (or the caller's `initialize`) that composed the
+    config, else cfg/'s."""
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    if GlobalHydra.instance().is_initialized():
+        yield GlobalHydra.instance().config_loader().get_sources()
+        return
+    with initialize_config_dir(config_dir=str(CFG_DIR), version_base="1.3"):
+        yield GlobalHydra.instance().config_loader().get_sources()
+
+
+def hydra_overrides() -> list[str] | None:
+    """The overrides Hydra parsed from train.py's command line; None outside its app."""
+    from hydra.core.hydra_config import HydraConfig
+
+    return list(HydraConfig.get().overrides.task) if HydraConfig.initialized() else None
+
+
+def resume_command(checkpoint: str, log_dir: str, iterations_left: int | None = None) -> str:
+    """The train.py command line that continues a run: this run's own overrides (from Hydra, when
+    it composed the config) with resume= and runner.log_dir= set, and runner.max_iterations= the
+    iterations left to the end the interrupted command set (a resume runs that many more)."""
+    overrides = hydra_overrides() or []
+    # a `+key=` that composed names a key of the schema (validation refuses others), and Hydra now
+    # refuses `+` on an existing key: repeat it without the `+`
+    drop = ("resume=", "warm_start=", "runner.log_dir=") + (
+        ("runner.max_iterations=",) if iterations_left is not None else ()
+    )
+    keep = [o.removeprefix("+") for o in overrides if not o.lstrip("+~").startswith(drop)]
+    if iterations_left is not None:
+        keep.append(f"runner.max_iterations={max(iterations_left, 1)}")
+    keep += [f"resume={hydra_quote(checkpoint)}", f"runner.log_dir={hydra_quote(log_dir)}"]
+    # quoted for the shell, so that it can be pasted: a path with a space, brackets of a list
+    return " ".join(["python train.py", *map(shlex.quote, keep)])
+
+
+def hydra_quote(value: str) -> str:
+    """`value` as a Hydra override's value: as it is where Hydra reads it whole, else in Hydra's
+    double quotes (a path with a comma would be a sweep, one with brackets or quotes a parse error).
+    In them a quote is escaped, and so are the backslashes before a quote or at the end (Hydra's rule)."""
+    if re.fullmatch(r"[\w./@:+-]+", value):
+        return value
+    escaped = re.sub(r'(\\*)"', lambda m: m.group(1) * 2 + '\\"', value)
+    escaped = re.sub(r"(\\+)$", lambda m: m.group(1) * 2, escaped)
+    return f'"{escaped}"'

@@ -27,10 +27,11 @@ from lasmp.atomic import AtomicWriteError, atomic_open
 from lasmp.config import ConfigError
 from lasmp.envs import registry
 from lasmp.envs.trajectories import TrajectoryFileError
+from lasmp.hydra_cli import explicit_keys, hydra_overrides, resume_command
 from lasmp.inputs import SEED_MAX
 from lasmp.preflight import training_environment_error
 from lasmp.recipe import run_label, run_slug
-from lasmp.resume import Resume, check_run_dir, explicit_keys, hydra_overrides, resume_command
+from lasmp.resume import Resume, check_run_dir
 from lasmp.rsl_compat import raised_storing_code_state
 from lasmp.rundir import RunDirError, claim, run_checkpoints
 from lasmp.tb_compat import events_file, is_writer_thread, raised_in_tensorboard, writer_thread_error

@@ -26,8 +26,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from lasmp.algo.checkpoint import learning_rates, read_checkpoint
+from lasmp.checkpoint_sanity import check_state
 from lasmp.config import ConfigError
-from lasmp.resume import check_state, resumed_cfg
+from lasmp.resume import resumed_cfg
 from lasmp.train_cfg import TrainCfg
 
 if TYPE_CHECKING:

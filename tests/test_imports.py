@@ -12,12 +12,13 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lasmp"
 # docs/layout.md's layers, top first: a module imports only from the layers below its own, never
 # from another package of its layer (the learner and the envs do not know each other)
 LAYERS = (
-    ("lasmp.train", "lasmp.play", "lasmp.hydra_cli"),
+    ("lasmp.train", "lasmp.play"),
+    ("lasmp.hydra_cli",),
     ("lasmp.warm_start",),
     ("lasmp.resume", "lasmp.train_resources"),
     ("lasmp.eval", "lasmp.render"),
     ("lasmp.deploy", "lasmp.light_checkpoint"),
-    ("lasmp.checkpoint_cfg",),
+    ("lasmp.checkpoint_cfg", "lasmp.checkpoint_sanity"),
     ("lasmp.train_cfg", "lasmp.recipe"),
     ("lasmp.train_bounds",),
     ("lasmp.motions",),

@@ -124,11 +124,11 @@ def test_a_warm_start_from_a_checkpoint_with_a_non_finite_weight_is_refused_nami
 
 
 def test_the_resume_command_after_a_stop_of_a_warm_started_run_drops_the_warm_start(monkeypatch):
-    import lasmp.resume as resume
+    import lasmp.hydra_cli as cli
 
     given = ["seed=3", "warm_start=results/policy_364.pt", "runner.log_dir=runs/x", "runner.max_iterations=9"]
-    monkeypatch.setattr(resume, "hydra_overrides", lambda: given)
-    command = resume.resume_command("runs/x/model_7.pt", "runs/x", 3)
+    monkeypatch.setattr(cli, "hydra_overrides", lambda: given)
+    command = cli.resume_command("runs/x/model_7.pt", "runs/x", 3)
     assert command == (
         "python train.py seed=3 runner.max_iterations=3 resume=runs/x/model_7.pt runner.log_dir=runs/x"
     )

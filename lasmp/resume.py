@@ -24,10 +24,9 @@ from lasmp.algo.checkpoint import (
     CheckpointError,
     read_checkpoint,
     refuse_policy_only,
-    run_checkpoints,
 )
 from lasmp.checkpoint_cfg import rebuilding
-from lasmp.rundir import RunDirError, describe, run_files
+from lasmp.rundir import RunDirError, describe, run_checkpoints, run_files
 from lasmp.train_cfg import TrainCfg, to_plain, to_train_cfg
 
 if TYPE_CHECKING:

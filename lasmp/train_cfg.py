@@ -178,7 +178,7 @@ class RunnerCfg:
     save_interval: int = 100
     # (ours) the newest full checkpoints model_<N>.pt kept in the run directory; each older save becomes
     # its policy checkpoint policy_<N>.pt, which plays and evaluates but cannot resume: a laptop keeps
-    # a long run (docs/usage.md#checkpoints-lasmpalgocheckpointpy)
+    # a long run (docs/usage.md#checkpoints-lasmpalgocheckpoint)
     keep_full: int = 2
     log_dir: str | None = None  # default: logs/<task>/<policy>/<date_time>
     check_for_nan: bool = True

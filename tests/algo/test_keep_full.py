@@ -140,7 +140,7 @@ def test_a_conversion_that_cannot_write_leaves_the_full_checkpoint_and_says_why(
     def full_disk(obj, path):
         raise AtomicWriteError(path, OSError(28, "No space left on device"))
 
-    monkeypatch.setattr(ckpt, "atomic_torch_save", full_disk)
+    monkeypatch.setattr(ckpt.forms, "atomic_torch_save", full_disk)  # what the conversion writes with
     done, left = ckpt.keep_newest_full(d, 1)
     assert done == [] and names(d) == {"model_3.pt", "model_4.pt", "model_5.pt"}
     assert len(left) == 2 and "model_3.pt (cannot write" in left[0] and "No space left" in left[0]

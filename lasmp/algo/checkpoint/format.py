@@ -1,31 +1,6 @@
-"""Checkpoint files: writing, reading, compatibility checks, the latest one of a run.
-
-A checkpoint (format "lasmp-checkpoint-v1") is a dict saved with `torch.save` that holds only tensors,
-numbers, strings and plain containers, and is read with `torch.load(weights_only=True)`: loading a
-file from elsewhere never runs code (the env's running state is stored by `lasmp.plainstate`):
-- the learner's state (`LasmpRunner.save`: all networks with their normalizers, both optimizers);
-- `iter`: the last *completed* iteration (a resume continues at iter + 1);
-- `config`: the resolved TrainCfg as a plain dict (`lasmp.checkpoint_cfg` rebuilds it); `obs_layout`
-  and `num_actions`;
-- `env_state`: the env's own state: the curriculum's level and window, and under "run" every env's
-  running state (physics, per-env model fields, buffers, trajectories, intrinsics), so that a
-  resume continues bit for bit (older checkpoints lack "run": their envs restart their episodes);
-- `rng_state`: torch's and the env's numpy random states at the save, so that a resume continues
-  the random streams instead of replaying them from the seed (optional: older checkpoints lack it).
-A *policy checkpoint* (`policy_checkpoint`, `kind` = "policy") is the same file without the
-optimizers' states and the envs' running state: a few MB that play.py and evaluate.py load, and
-train.py refuses to resume.
-In a run directory a full checkpoint is `model_<N>.pt` and a policy checkpoint `policy_<N>.pt`, N the
-iteration saved; training keeps the newest `runner.keep_full` full ones and turns older ones into
-policy ones (`keep_newest_full`). A run directory given to play or evaluate means its newest
-checkpoint of either kind, given to a resume its newest full one (`latest_checkpoint`).
-It is written to a temporary file in the same directory and renamed over the target
-(`atomic_torch_save`), so an interrupted save never leaves a truncated checkpoint behind.
-Every command reads one through `read_checkpoint`: only a regular file (a FIFO would hang it), and
-only one that begins as a PyTorch checkpoint (an ONNX model, a text or .npz file is named for what
-it is); a checkpoint of a newer format than CHECKPOINT_VERSION says to update lasmp. Running state
-that names a class or a field otherwise than the envs do reads back renamed (`RENAMED_RUN_STATE`).
-"""
+"""The checkpoint file's format: writing it atomically, reading it safely and checked, its
+compatibility with an env, the random state it carries (the package's docstring says what a
+checkpoint holds)."""
 
 from __future__ import annotations
 
@@ -46,12 +21,22 @@ from lasmp.inputs import InputError, check_out_file
 from lasmp.rundir import CHECKPOINT_NAME, FULL, POLICY, run_checkpoints
 
 CHECKPOINT_VERSION = 1
+
+
 CHECKPOINT_FORMAT = f"lasmp-checkpoint-v{CHECKPOINT_VERSION}"
+
+
 CHECKPOINT_SUFFIXES = (".pt", ".pth")  # what the checkpoint tool writes
+
+
 REQUIRED_KEYS = ("actor_state_dict", "critic_state_dict", "config", "obs_layout", "num_actions", "iter")
+
+
 # the envs' running-state format (BaseEnv.RUN_STATE_FORMAT) that stores it as plain data: what
 # `convert_trusted` writes (a test holds it equal to the env's)
 PLAIN_RUN_STATE_FORMAT = 3
+
+
 # The envs' running state names the class of each dataclass it holds (`lasmp.plainstate.pack`), and
 # `unpack` restores one only into a live value of that class with the same fields. A checkpoint
 # that names a class or a field otherwise reads back through this table, kept here so that the
@@ -59,6 +44,8 @@ PLAIN_RUN_STATE_FORMAT = 3
 # {field in the file: field now}, fields the class now lacks: dropped). `rename_run_state` applies
 # them to every checkpoint read (`read_checkpoint`) and converted (`convert_trusted`).
 RunStateRule = tuple[str, str, dict[str, str], tuple[str, ...]]
+
+
 RENAMED_RUN_STATE: dict[str, dict[str, tuple[RunStateRule, ...]]] = {
     "moving_platform": {"readout": (("Readout", "SceneReadout", {}, ()),)},
     "rough_static": {
@@ -93,25 +80,6 @@ def latest_checkpoint(run_dir: str | Path, full_only: bool = False) -> Path:
             )
         raise CheckpointError(f"no checkpoint model_<N>.pt or policy_<N>.pt in {run_dir}")
     return found[max(found)]
-
-
-def refuse_policy_only(data: dict) -> None:
-    """A policy checkpoint cannot resume training: CheckpointError saying so, naming the newest full
-    checkpoint of its directory where there is one."""
-    if not is_policy_only(data):
-        return
-    path = Path(data["path"])
-    full = run_checkpoints(path.parent, full_only=True)
-    where = (
-        f"give {full[max(full)]}, the newest full checkpoint of its run"
-        if full
-        else f"give a full checkpoint ({FULL}_<N>.pt): {path.parent} holds none, or start a new run from "
-        f"its weights with warm_start={path} (fresh optimizers)"
-    )
-    raise CheckpointError(
-        f"{path} is a policy checkpoint (it holds no training state: no optimizers, no envs' running "
-        f"state). Play or evaluate it; to resume training, {where}"
-    )
 
 
 def _converted(path: Path) -> str:
@@ -157,6 +125,8 @@ _NOT_REGULAR = (
     (stat.S_ISSOCK, "a socket"),
     (stat.S_ISDIR, "a directory"),
 )
+
+
 # how torch.save's older (pre-1.6, non-zip) files begin: a pickled magic number
 _TORCH_LEGACY_MAGIC = b"\x80\x02\x8a\x0a\x6c\xfc\x9c\x46\xf9\x20\x6a\xa8\x50\x19"
 
@@ -341,105 +311,6 @@ def atomic_torch_save(obj, path: str | Path) -> None:
         torch.save(obj, f)
 
 
-OPTIMIZER_KEYS = ("optimizer_state_dict", "estimator_optimizer_state_dict", "rnd_optimizer_state_dict")
-
-
-def is_policy_only(data: dict) -> bool:
-    """True for a policy checkpoint: networks without optimizer states (cannot resume training)."""
-    return data.get("kind") == "policy" or "optimizer_state_dict" not in data
-
-
-def policy_only(data: dict, source: str) -> dict:
-    """A policy checkpoint's content from a checkpoint's `data`: without the optimizers' states and the
-    envs' running state (the task's state, such as the curriculum, stays); `source` says where from.
-    The learning rate each optimizer had reached stays (`learning_rates`, a few bytes): a warm start
-    from the file goes on at it. Why: the adaptive schedule lowers it (7.6e-5 at iteration 550 of a
-    default run), and restarting at algo.learning_rate (1e-3) with fresh Adam moments undoes the policy
-    (docs/scaling.md, the warm start's shock)."""
-    slim = {k: v for k, v in data.items() if k not in OPTIMIZER_KEYS and k != "path"}
-    slim["env_state"] = {k: v for k, v in (data.get("env_state") or {}).items() if k != "run"}
-    rates = learning_rates(data)
-    if rates:
-        slim["learning_rates"] = rates
-    slim.update(kind="policy", source=source)
-    return slim
-
-
-def learning_rates(data: dict) -> dict[str, dict[str, float]]:
-    """{optimizer: {"lr": its first group's learning rate}} of a checkpoint's `data`: read off its
-    optimizers' states (a full checkpoint) or the `learning_rates` a policy checkpoint kept."""
-    if "learning_rates" in data:
-        return dict(data["learning_rates"])
-    return {
-        key.removesuffix("_state_dict"): {"lr": float(data[key]["param_groups"][0]["lr"])}
-        for key in OPTIMIZER_KEYS
-        if isinstance(data.get(key), dict) and data[key].get("param_groups")
-    }
-
-
-def policy_checkpoint(src: str | Path, dst: str | Path, force: bool = False, claim: bool = True) -> Path:
-    """Write the policy checkpoint of `src` (a checkpoint or run directory) to `dst`: everything but
-    the optimizers' states and the envs' running state (networks with their normalizers, config,
-    layout, the task's env state such as the curriculum). An existing `dst` (`src` itself included)
-    is overwritten only with `force`; `dst` is checked and claimed (`_claim`) before `src` is read.
-    `claim=False` (with `force`) writes without the claim's placeholder: for `keep_newest_full`, inside a
-    locked run directory, where a training killed mid-way must not leave an empty policy_<N>.pt."""
-    src, dst = checkpoint_file(src), _out_file(dst)
-    with _claim(dst, force, src) if claim else contextlib.nullcontext():
-        data = read_checkpoint(src)
-        slim = policy_only(data, f"{Path(data['path']).name} (iteration {data['iter']})")
-        check_finite(slim, f"refusing to write {dst}")
-        atomic_torch_save(slim, dst)
-    return Path(dst)
-
-
-def keep_newest_full(run_dir: str | Path, keep_full: int) -> tuple[list[str], list[str]]:
-    """Keep the newest `keep_full` full checkpoints of `run_dir` and turn each older `model_<N>.pt`
-    into its policy checkpoint `policy_<N>.pt` (a tenth of the size: a laptop keeps a long run).
-    No step loses the only copy: the policy file is written atomically and read back, the directory
-    synced, and only then the full one removed. Returns the conversions ("model_3.pt -> policy_3.pt")
-    and the files left as they were, each with why (an unreadable checkpoint, a full disk, a
-    `policy_<N>.pt` in the way that is not a policy checkpoint)."""
-    full = run_checkpoints(run_dir, full_only=True)
-    done, left = [], []
-    for n in list(full)[: max(len(full) - keep_full, 0)]:
-        src = full[n]
-        dst = src.with_name(f"{POLICY}_{n}.pt")
-        kind = _kind_of(dst) if dst.exists() else None
-        try:
-            if kind not in (None, "a policy checkpoint"):
-                raise CheckpointError(f"{dst.name} exists and is {kind}")
-            # force: a policy_<N>.pt of an earlier, cut-short conversion; no claim (an empty file) in a run
-            policy_checkpoint(src, dst, force=True, claim=False)
-            read_checkpoint(dst)
-        except (CheckpointError, OSError) as err:  # OSError: a full disk; the full one stays
-            left.append(f"{src.name} ({err})")
-            continue
-        _sync_directory(src.parent)
-        src.unlink()
-        done.append(f"{src.name} -> {dst.name}")
-    return done, left
-
-
-def _sync_directory(path: Path) -> None:
-    """fsync a directory: the renames in it are on disk before what follows (a removal) is."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _kind_of(path: Path) -> str:
-    """What an existing file is, in a few words, for a refusal to overwrite it."""
-    if path.is_dir():
-        return "a directory"
-    try:
-        return "a policy checkpoint" if is_policy_only(read_checkpoint(path)) else "a full checkpoint"
-    except CheckpointError:
-        return "not a lasmp checkpoint"
-
-
 def check_compatible(data: dict, env) -> None:
     """Refuse a checkpoint whose observation layout or action size differs from the env's."""
     have = obs_layout(env.get_observations())
@@ -499,60 +370,19 @@ def set_rng_state(state: dict, env_rng: np.random.Generator) -> None:
     env_rng.bit_generator.state = state["numpy_env"]
 
 
-def main(argv=None) -> int:
-    """`python -m lasmp.algo.checkpoint policy SRC DST [--force]`: write the policy checkpoint of SRC to
-    DST (an existing DST only with --force);
-    `python -m lasmp.algo.checkpoint info PATH`: what a checkpoint holds;
-    `python -m lasmp.algo.checkpoint convert --trust SRC DST [--force]`: an older checkpoint rewritten.
-    DST must end in .pt (or .pth); it is checked before SRC is read."""
-    import argparse
-    import sys
+OPTIMIZER_KEYS = ("optimizer_state_dict", "estimator_optimizer_state_dict", "rnd_optimizer_state_dict")
 
-    p = argparse.ArgumentParser(prog="python -m lasmp.algo.checkpoint", description=main.__doc__)
-    sub = p.add_subparsers(dest="cmd", required=True)
-    pol = sub.add_parser("policy", help="strip the optimizer states (a few MB to ship or share)")
-    pol.add_argument("src", help="a checkpoint file or run directory (its latest)")
-    pol.add_argument("dst")
-    pol.add_argument("--force", action="store_true", help="overwrite DST if it exists (even when it is SRC)")
-    inf = sub.add_parser("info", help="iteration, task, policy, size and kind of a checkpoint")
-    inf.add_argument("path")
-    conv = sub.add_parser(
-        "convert",
-        help="rewrite an older checkpoint (pickled objects) in the safe format; "
-        "this unpickles IN, which can run code: only for a file you trust",
-    )
-    conv.add_argument("src")
-    conv.add_argument("dst")
-    conv.add_argument("--trust", action="store_true", help="required: I trust SRC (it will be unpickled)")
-    conv.add_argument("--force", action="store_true", help="overwrite DST if it exists")
-    args = p.parse_args(argv)
+
+def is_policy_only(data: dict) -> bool:
+    """True for a policy checkpoint: networks without optimizer states (cannot resume training)."""
+    return data.get("kind") == "policy" or "optimizer_state_dict" not in data
+
+
+def _kind_of(path: Path) -> str:
+    """What an existing file is, in a few words, for a refusal to overwrite it."""
+    if path.is_dir():
+        return "a directory"
     try:
-        if args.cmd == "policy":
-            out = policy_checkpoint(args.src, args.dst, force=args.force)
-            print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB)")
-        elif args.cmd == "convert":
-            if not args.trust:
-                print(
-                    "error: convert unpickles SRC, which can run any code it holds; give --trust if you "
-                    "trust the file",
-                    file=sys.stderr,
-                )
-                return 2
-            out = convert_trusted(args.src, args.dst, force=args.force)
-            print(f"wrote {out}: it loads without unpickling")
-        else:
-            data = read_checkpoint(args.path)
-            cfg = data["config"] if isinstance(data["config"], dict) else {}
-            print(
-                f"{data['path']}: iteration {data['iter']}, task {cfg.get('task')}, policy "
-                f"{cfg.get('policy', {}).get('name')}, {'policy checkpoint' if is_policy_only(data) else 'full'}, "
-                f"curriculum {data.get('env_state', {}).get('curriculum')}"
-            )
-    except (CheckpointError, FloatingPointError, OSError) as err:  # OSError: a full disk, a bad path
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+        return "a policy checkpoint" if is_policy_only(read_checkpoint(path)) else "a full checkpoint"
+    except CheckpointError:
+        return "not a lasmp checkpoint"

@@ -239,7 +239,7 @@ def test_a_second_writer_started_while_the_first_works_is_refused_not_overwritte
     assert out.stat().st_size > 0
 
 
-def test_results_table_json_refuses_to_replace_the_users_file_as_in_the_issue(tmp_path):
+def test_results_table_json_refuses_to_replace_an_existing_file(tmp_path):
     """Unclaimed, `python -m lasmp.eval.results_table --json FILE` would replace FILE silently."""
     out = tmp_path / "FILE.json"
     out.write_bytes(USER_DATA)

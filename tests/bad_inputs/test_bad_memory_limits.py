@@ -86,7 +86,7 @@ def test_a_cgroup_v1_memory_limit_is_read_from_the_memory_hierarchy(tmp_path):
 
 
 def test_sixty_thousand_envs_under_a_3_gb_cgroup_are_refused_naming_the_limit(tmp_path):
-    """The issue's case: the old check read the machine's free memory only, passed, and MuJoCo failed."""
+    """A check that read the machine's free memory alone would pass this, and MuJoCo would then fail."""
     root, proc = mocked_cgroup(tmp_path, "0::/\n", {"memory.max": str(3 * 10**9), "memory.current": "0"})
     cfg = config("env.num_envs=60000")
     with pytest.raises(ConfigError) as err:
@@ -177,7 +177,7 @@ def test_a_trajectory_set_under_a_lowered_ulimit_v_is_refused_before_sampling(tm
 
 # -- a trajectory set larger than the machine ----------------------------------------------------
 def test_a_hundred_million_trajectories_are_refused_up_front_with_the_estimate(tmp_path):
-    """The issue's case: numpy tried to allocate 71.5 GiB for the waypoints alone, then failed."""
+    """Unchecked, numpy would try to allocate 71.5 GiB for the waypoints alone, then fail."""
     out = tmp_path / "set.npz"
     result = call(trajectories_main, ["generate", "--num", "100000000", "--out", str(out)])
     refused(result, r"--num 100000000: sampling 100,000,000 trajectories needs at least \d", "per trajectory")

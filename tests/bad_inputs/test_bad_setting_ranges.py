@@ -175,7 +175,7 @@ def test_a_setting_without_meaning_is_refused_at_start_up_in_one_line(tmp_path, 
 
 
 def test_train_py_refuses_a_decimation_of_a_million_at_once_with_one_line(tmp_path):
-    """The issue's case: accepted, the first rollout ignored SIGTERM for over a minute."""
+    """Accepted, it would make the first rollout ignore SIGTERM for over a minute."""
     proc = train_py(tiny("env.sim.decimation=1000000", f"runner.log_dir={tmp_path / 'run'}"), tmp_path)
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 2, err[-2000:]

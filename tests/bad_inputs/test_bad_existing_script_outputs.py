@@ -46,7 +46,9 @@ def _fake_plot(summary, path):
 @pytest.fixture(autouse=True)
 def stand_ins(monkeypatch):
     """The scripts' plays replaced by stand-ins that return at once (the benchmark, the rollouts)."""
-    monkeypatch.setattr(eval_build, "load_or_make_benchmark", lambda path: SimpleNamespace(num_trajectories=4))
+    monkeypatch.setattr(
+        eval_build, "load_or_make_benchmark", lambda path: SimpleNamespace(num_trajectories=4)
+    )
     monkeypatch.setattr(tilt, "load_or_make_benchmark", lambda path: None)
     monkeypatch.setattr(tilt, "play", lambda checkpoint, episodes, bench: ({}, 0.02))
     monkeypatch.setattr(tilt, "tilt_split", lambda **arrays: {})

@@ -13,6 +13,7 @@ from rsl_rl.modules import EmpiricalNormalization
 from rsl_rl.runners import OnPolicyRunner
 from rsl_rl.utils.logger import Logger
 from tensordict import TensorDict
+from testkit import tensorboard_logger
 
 from lasmp.rsl_compat import (
     NORMALIZER_STD_KEY,
@@ -104,16 +105,7 @@ def test_a_failed_write_of_the_code_state_is_told_from_its_traceback(tmp_path):
     assert callable(getattr(Logger, "_store_code_state", None))
     assert "self._store_code_state()" in inspect.getsource(Logger.init_logging_writer)
     (tmp_path / "git").write_text("a file where the logger makes its git/ folder")
-    logger = LoggerCompat(
-        log_dir=str(tmp_path),
-        cfg={"algorithm": {}, "logger": "tensorboard"},
-        env_cfg={},
-        num_envs=1,
-        is_distributed=False,
-        gpu_world_size=1,
-        gpu_global_rank=0,
-        device="cpu",
-    )
+    logger = tensorboard_logger(tmp_path)
     with pytest.raises(OSError) as raised:
         logger.init_logging_writer()
     logger.writer.close()

@@ -8,9 +8,9 @@ import threading
 from pathlib import Path
 
 import pytest
+from testkit import tensorboard_logger
 from torch.utils.tensorboard import SummaryWriter
 
-from lasmp.rsl_compat import LoggerCompat
 from lasmp.tb_compat import events_file, is_writer_thread, raised_in_tensorboard, writer_thread_error
 
 
@@ -32,16 +32,7 @@ def test_the_events_file_is_the_one_the_writer_appends_to(tmp_path):
 
 
 def test_rsl_rl_s_tensorboard_writer_has_its_events_file_in_the_run(tmp_path):
-    logger = LoggerCompat(
-        log_dir=str(tmp_path),
-        cfg={"algorithm": {}, "logger": "tensorboard"},
-        env_cfg={},
-        num_envs=1,
-        is_distributed=False,
-        gpu_world_size=1,
-        gpu_global_rank=0,
-        device="cpu",
-    )
+    logger = tensorboard_logger(tmp_path)
     logger.init_logging_writer()
     try:
         assert Path(events_file(logger.writer)).parent == tmp_path

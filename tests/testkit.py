@@ -323,3 +323,19 @@ def mark_evaluated(d: Path) -> None:
 # ---- play.py on a tiny trained run (tests/conftest.py's run_dir, tests/test_play_*.py) ------------------
 
 PLAY_LATENT_DIM = 8  # not the default (16): play must take it from the checkpoint
+
+
+def tensorboard_logger(log_dir):
+    """rsl_rl's logger (our LoggerCompat) writing TensorBoard into `log_dir`, for one env on the CPU."""
+    from lasmp.rsl_compat import LoggerCompat
+
+    return LoggerCompat(
+        log_dir=str(log_dir),
+        cfg={"algorithm": {}, "logger": "tensorboard"},
+        env_cfg={},
+        num_envs=1,
+        is_distributed=False,
+        gpu_world_size=1,
+        gpu_global_rank=0,
+        device="cpu",
+    )

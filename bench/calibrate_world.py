@@ -28,7 +28,7 @@ import time
 import numpy as np
 import torch
 
-from lasmp.config import build_env_cfg
+from lasmp.config.base import build_env_cfg
 from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.robot import as_numpy

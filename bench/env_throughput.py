@@ -28,7 +28,7 @@ import lasmp  # noqa: F401  (first: it sets the OpenMP spin that torch reads whe
 import numpy as np
 import torch
 
-from lasmp.config import build_env_cfg
+from lasmp.config.base import build_env_cfg
 from lasmp.envs.backends import make_backend
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv

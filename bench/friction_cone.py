@@ -117,7 +117,7 @@ def env_cost(settings: list[str], num_envs: int, steps: int, rounds: int) -> dic
     """Moving-platform env policy steps (Stand Still), settings interleaved per round."""
     import torch
 
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
     envs = {}

@@ -21,7 +21,7 @@ import sys
 
 import numpy as np
 
-from lasmp.config import build_env_cfg
+from lasmp.config.base import build_env_cfg
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.eval.build import DEFAULT_BENCHMARK, eval_env_overrides, load_or_make_benchmark

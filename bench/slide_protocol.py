@@ -16,7 +16,7 @@ import lasmp  # noqa: F401  (first: it sets the OpenMP spin that torch reads whe
 import mujoco
 import numpy as np
 
-from lasmp.config import SimCfg
+from lasmp.config.base import SimCfg
 from lasmp.envs.moving_platform import scene
 from lasmp.envs.moving_platform.cfg import PlatformCfg
 from lasmp.robots import a1

@@ -28,8 +28,8 @@ from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
-from lasmp.train import make_runner
-from lasmp.train_cfg import register_configs, to_train_cfg
+from lasmp.cli.train import make_runner
+from lasmp.config.train import register_configs, to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -11,8 +11,8 @@ import sys
 os.environ.setdefault("GOMP_SPINCOUNT", "10000")
 
 # `python -m lasmp.<tool>`: while Python locates the tool's module, importing this package first,
-# sys.argv[0] is "-m" (documented); a Ctrl-C while the tool loads then says one line (lasmp/ctrl_c.py)
+# sys.argv[0] is "-m" (documented); a Ctrl-C while the tool loads then says one line (lasmp/io/ctrl_c.py)
 if getattr(sys, "argv", [])[:1] == ["-m"]:
-    from lasmp.ctrl_c import quiet_ctrl_c
+    from lasmp.io.ctrl_c import quiet_ctrl_c
 
     quiet_ctrl_c()

@@ -24,10 +24,10 @@ from lasmp.algo.checkpoint import (
     read_checkpoint,
     set_rng_state,
 )
-from lasmp.checkpoint_cfg import checkpoint_cfg
+from lasmp.cli.preflight import backend_error
+from lasmp.config.checkpoint import checkpoint_cfg
+from lasmp.config.train import TrainCfg, rsl_rl_cfg
 from lasmp.envs.registry import make_env
-from lasmp.preflight import backend_error
-from lasmp.train_cfg import TrainCfg, rsl_rl_cfg
 
 
 @dataclass

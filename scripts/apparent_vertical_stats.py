@@ -25,12 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import claim_output
 from lasmp.eval import build as eval_build
 from lasmp.eval import cli
 from lasmp.eval import platform_probe as pp
 from lasmp.eval.report import atomic_write_text
-from lasmp.inputs import InputError, check_out_file
+from lasmp.io.atomic import claim_output
+from lasmp.io.inputs import InputError, check_out_file
 from lasmp.motions import level_push
 from lasmp.motions.motion import derivatives
 
@@ -137,7 +137,7 @@ def main(argv=None) -> int:
     with claims:  # the claim is removed if the replay fails
         if not 1 <= args.episodes <= bench.num_trajectories:
             p.error(f"--episodes must be in [1, {bench.num_trajectories}], got {args.episodes}")
-        from lasmp.config import build_env_cfg
+        from lasmp.config.base import build_env_cfg
         from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 
         env_cfg = build_env_cfg(eval_build.eval_env_overrides(args.batch_envs, 0), schema=MovingPlatformCfg)

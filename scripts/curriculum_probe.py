@@ -29,9 +29,9 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from lasmp.algo.checkpoint import CheckpointError, checkpoint_file  # noqa: E402
-from lasmp.atomic import atomic_open, claim_output  # noqa: E402
 from lasmp.deploy import load_deploy_env  # noqa: E402
-from lasmp.inputs import InputError, check_out_file  # noqa: E402
+from lasmp.io.atomic import atomic_open, claim_output  # noqa: E402
+from lasmp.io.inputs import InputError, check_out_file  # noqa: E402
 
 
 def first_episodes(env, act, steps: int) -> dict:

@@ -209,7 +209,7 @@ def figure(found: dict[str, dict[int, dict]], out: Path) -> Path:
 
 
 def _last_saved(run_dir: Path) -> int | None:
-    from lasmp.rundir import run_checkpoints
+    from lasmp.io.rundir import run_checkpoints
 
     full = run_checkpoints(run_dir, full_only=True) if run_dir.is_dir() else {}
     return max(full) if full else None
@@ -242,7 +242,7 @@ def train(name: str, seed: int) -> int:
     time and the machine, once the training has saved a checkpoint (so that a snapshot of a run still
     training carries it), never for a run that failed before its first save. A run with no checkpoint
     here but a committed snapshot (its machine was lost) goes on from the snapshot's policy, a warm
-    start (lasmp/warm_start.py), after the snapshot's commands."""
+    start (lasmp/cli/warm_start.py), after the snapshot's commands."""
     rung = _rung(name)
     run_dir = RUNS / name / f"seed{seed}"
     last = _last_saved(ROOT / run_dir)
@@ -282,7 +282,7 @@ def train(name: str, seed: int) -> int:
 def light_copy(src: Path, dst: Path) -> Path:
     """`dst`: the light form (actor only) of checkpoint `src`, full or policy-only."""
     from lasmp.algo.checkpoint import is_policy_only, policy_checkpoint, read_checkpoint
-    from lasmp.light_checkpoint import write_light
+    from lasmp.algo.checkpoint.light import write_light
 
     if is_policy_only(read_checkpoint(src)):
         return write_light(src, dst, force=True)

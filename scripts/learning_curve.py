@@ -22,7 +22,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from lasmp.inputs import InputError, int_arg, read_json
+from lasmp.io.inputs import InputError, int_arg, read_json
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -90,7 +90,7 @@ def main(argv=None) -> None:
         p.error(f"--out {args.out} is not a directory")
     from lasmp.eval.curves import read_scalars  # torch: after the arguments, so that --help answers at once
     from lasmp.eval.report import atomic_write_text
-    from lasmp.rundir import run_checkpoints
+    from lasmp.io.rundir import run_checkpoints
 
     its = sorted(set(args.at))
     # every checkpoint exists and the logs cover it before the first evaluation starts

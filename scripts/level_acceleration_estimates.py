@@ -28,14 +28,14 @@ import numpy as np
 import torch
 
 from lasmp.algo.checkpoint import checkpoint_file
-from lasmp.atomic import atomic_write_with, claim_output
 from lasmp.eval import build as eval_build
 from lasmp.eval import cli
 from lasmp.eval.benchmark import Benchmark
 from lasmp.eval.real_motion import suite as rm
 from lasmp.eval.report import atomic_write_text
 from lasmp.eval.run import run_benchmark
-from lasmp.inputs import InputError, check_out_file
+from lasmp.io.atomic import atomic_write_with, claim_output
+from lasmp.io.inputs import InputError, check_out_file
 from lasmp.modules.obs_groups import GYRO_Z_COL, alignment_from_estimates
 from lasmp.motions import level_push
 

@@ -21,10 +21,10 @@ import argparse
 import json
 from pathlib import Path
 
-from lasmp.atomic import atomic_open
 from lasmp.eval import episodes as ep
 from lasmp.eval import metrics
-from lasmp.inputs import InputError, read_json
+from lasmp.io.atomic import atomic_open
+from lasmp.io.inputs import InputError, read_json
 
 ROOT = Path(__file__).resolve().parents[1]
 SCREEN = ROOT / "results" / "screen"

@@ -55,7 +55,7 @@ from studylib.plan import FRESH_SEEDS, METHODS, SEEDS, is_done, steps, summary_a
 from studylib.runs import evaluate, train
 from studylib.tables import compare, headline, ordering, table, write_tables
 
-from lasmp.inputs import InputError, int_arg
+from lasmp.io.inputs import InputError, int_arg
 
 
 def main(argv=None) -> None:

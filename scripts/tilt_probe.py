@@ -30,14 +30,14 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from lasmp.algo.checkpoint import checkpoint_file  # noqa: E402
-from lasmp.atomic import atomic_open, claim_output  # noqa: E402
 from lasmp.envs.robot import as_numpy  # noqa: E402
 from lasmp.eval.benchmark import Benchmark  # noqa: E402
 from lasmp.eval.build import DEFAULT_BENCHMARK, build, load_or_make_benchmark  # noqa: E402
 from lasmp.eval.cli import INPUT_ERRORS  # noqa: E402
 from lasmp.eval.metrics import angle_between, in_heading, z_axis_h  # noqa: E402
 from lasmp.eval.run import BenchmarkSource  # noqa: E402
-from lasmp.inputs import InputError, check_out_file, int_arg  # noqa: E402
+from lasmp.io.atomic import atomic_open, claim_output  # noqa: E402
+from lasmp.io.inputs import InputError, check_out_file, int_arg  # noqa: E402
 
 SLOW_HZ = 0.5
 

@@ -93,7 +93,7 @@ def run_dir(tmp_path_factory) -> Path:
     from omegaconf import OmegaConf
     from testkit import PLAY_LATENT_DIM
 
-    from lasmp.train import train
+    from lasmp.cli.train import train
 
     log_dir = tmp_path_factory.mktemp("play_run")
     cfg = {

@@ -148,8 +148,8 @@ def test_train_cli_refuses_a_typo_naming_the_key_and_the_valid_ones_never_a_plus
 
 def unknown_key_error(argv: list[str]) -> str | None:
     """train.py's check of its command line `argv`, in this process."""
-    from lasmp import hydra_cli
-    from lasmp.train_cfg import register_configs
+    from lasmp.cli import command_line as hydra_cli
+    from lasmp.config.train import register_configs
 
     register_configs()  # what train.py does on import
     return hydra_cli.unknown_key_error(argv, ROOT / "cfg", "config")

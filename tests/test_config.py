@@ -19,10 +19,9 @@ from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 from omegaconf.errors import ConfigKeyError
 
-from lasmp.config import ConfigError
-from lasmp.envs.moving_platform.rewards import RewardsCfg
-from lasmp.train import make_runner
-from lasmp.train_cfg import (
+from lasmp.cli.train import make_runner
+from lasmp.config.base import ConfigError
+from lasmp.config.train import (
     TASKS,
     AlgoCfg,
     PolicyCfg,
@@ -32,6 +31,7 @@ from lasmp.train_cfg import (
     to_plain,
     to_train_cfg,
 )
+from lasmp.envs.moving_platform.rewards import RewardsCfg
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
@@ -288,11 +288,11 @@ def test_a_saved_config_reads_back_to_the_same_train_cfg(task):
 
 
 def test_the_env_schemas_import_without_the_envs():
-    """lasmp.config imports no task; a task's cfg module imports none of the modules that import it
+    """lasmp.config.base imports no task; a task's cfg module imports none of the modules that import it
     (env, scene), so there is no import cycle to trip over."""
     code = (
         "import json, sys\n"
-        "import lasmp.config\n"
+        "import lasmp.config.base\n"
         "before = sorted(m for m in sys.modules if m.startswith('lasmp.envs'))\n"
         "import lasmp.envs.moving_platform.cfg, lasmp.envs.rough_static.cfg\n"
         "print(json.dumps([before, sorted(m for m in sys.modules if m.startswith('lasmp.'))]))\n"

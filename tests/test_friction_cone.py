@@ -16,7 +16,7 @@ import math
 import pytest
 from testkit import load_script
 
-from lasmp.config import SimCfg
+from lasmp.config.base import SimCfg
 
 fc = load_script("bench/slide_protocol.py")
 

@@ -1,4 +1,4 @@
-"""What lasmp takes from Hydra's internals (lasmp/hydra_compat.py says why) is still there and still
+"""What lasmp takes from Hydra's internals (lasmp/compat/hydra.py says why) is still there and still
 reads a command line and expands a sweep as lasmp expects: an upgrade that moves one fails here."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from hydra.errors import HydraException
 
-from lasmp.hydra_compat import args_parser, basic_sweep_jobs
+from lasmp.compat.hydra import args_parser, basic_sweep_jobs
 
 
 def test_the_parser_reads_the_command_line_as_hydra_main_does():

@@ -1,11 +1,11 @@
-"""The shared input rules (lasmp/inputs.py): seeds, bounded numbers, and output files."""
+"""The shared input rules (lasmp/io/inputs.py): seeds, bounded numbers, and output files."""
 
 import argparse
 import os
 
 import pytest
 
-from lasmp.inputs import (
+from lasmp.io.inputs import (
     SEED_MAX,
     InputError,
     check_out_file,

@@ -122,7 +122,7 @@ def test_a_running_run_leaves_its_newest_policy_light_with_its_commands_and_an_u
 ):
     from testkit import tiny
 
-    from lasmp.train import train
+    from lasmp.cli.train import train
 
     ladder = load_script("scripts/ladder.py")
     ladder.ROOT, ladder.RESULTS = tmp_path, tmp_path / "results" / "ladder"

@@ -17,14 +17,14 @@ from omegaconf import OmegaConf
 from rsl_rl.utils.utils import resolve_class
 from testkit import tiny
 
-import lasmp.train
-import lasmp.train_cfg
+import lasmp.cli.train
+import lasmp.config.train
 from lasmp.algo.checkpoint import CheckpointError, read_checkpoint
-from lasmp.checkpoint_cfg import checkpoint_cfg
-from lasmp.config import ConfigError
+from lasmp.cli.train import train
+from lasmp.config.base import ConfigError
+from lasmp.config.checkpoint import checkpoint_cfg
+from lasmp.config.train import register_configs, rsl_rl_cfg
 from lasmp.eval.curves import read_scalars
-from lasmp.train import train
-from lasmp.train_cfg import register_configs, rsl_rl_cfg
 
 register_configs()
 # scalars OneLineLogger writes every iteration (the episode extras come on top)
@@ -61,7 +61,7 @@ def test_unknown_logger_is_refused_at_start_up_naming_the_field(tmp_path, monkey
     def no_env(*_):
         raise AssertionError("an env was built before the config was checked")
 
-    monkeypatch.setattr(lasmp.train, "make_env", no_env)
+    monkeypatch.setattr(lasmp.cli.train, "make_env", no_env)
     run = tmp_path / "run"
     with pytest.raises(
         ConfigError, match=r"runner\.logger must be one of tensorboard \| wandb \| neptune, got 'mlflow'"
@@ -71,7 +71,7 @@ def test_unknown_logger_is_refused_at_start_up_naming_the_field(tmp_path, monkey
 
 
 def test_missing_package_or_credentials_are_refused_naming_the_fix(tmp_path, monkeypatch):
-    monkeypatch.setattr(lasmp.train_cfg, "_installed", lambda package: False)
+    monkeypatch.setattr(lasmp.config.train, "_installed", lambda package: False)
     for name in ("wandb", "neptune"):
         with pytest.raises(
             ConfigError,
@@ -80,7 +80,7 @@ def test_missing_package_or_credentials_are_refused_naming_the_fix(tmp_path, mon
             + re.escape(f'pip install -e ".[{name}]"'),
         ):
             tiny(tmp_path, precision="float32", runner={"logger": name})
-    monkeypatch.setattr(lasmp.train_cfg, "_installed", lambda package: True)
+    monkeypatch.setattr(lasmp.config.train, "_installed", lambda package: True)
     monkeypatch.delenv("NEPTUNE_API_TOKEN", raising=False)
     monkeypatch.setenv("NEPTUNE_USERNAME", "someone")
     with pytest.raises(ConfigError, match="runner.logger=neptune needs NEPTUNE_API_TOKEN set"):
@@ -93,7 +93,7 @@ def test_rsl_rl_gets_the_dict_form_of_its_writers(tmp_path, monkeypatch):
     from rsl_rl.utils import NeptuneLogWriter, WandbLogWriter
 
     assert rsl_rl_cfg(tiny(tmp_path, precision="float32"))["logger"] == "tensorboard"
-    monkeypatch.setattr(lasmp.train_cfg, "_installed", lambda package: True)
+    monkeypatch.setattr(lasmp.config.train, "_installed", lambda package: True)
     monkeypatch.setenv("NEPTUNE_API_TOKEN", "token")
     monkeypatch.setenv("NEPTUNE_USERNAME", "someone")
     for name, writer in (("wandb", WandbLogWriter), ("neptune", NeptuneLogWriter)):
@@ -180,7 +180,7 @@ def test_wandb_offline_run_holds_config_and_every_scalar(tmp_path, offline_wandb
     assert_same_scalars(history, run)
 
     # play and evaluate rebuild the run without wandb; resuming it with wandb gone says what to install
-    monkeypatch.setattr(lasmp.train_cfg, "_installed", lambda package: False)
+    monkeypatch.setattr(lasmp.config.train, "_installed", lambda package: False)
     data = read_checkpoint(str(run / "model_1.pt"), "cpu")
     assert checkpoint_cfg(data, num_envs=2, seed=0).runner.logger == "tensorboard"
     with pytest.raises(CheckpointError, match=re.escape("runner.logger=wandb needs the wandb package")):

@@ -8,7 +8,7 @@ import sys
 
 from testkit import ROOT
 
-from lasmp.play import main
+from lasmp.cli.play import main
 
 
 def test_truncated_checkpoint_exits_2(run_dir, tmp_path, capsys):

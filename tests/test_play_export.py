@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import torch
 
+from lasmp.cli.play import main
 from lasmp.deploy import obs_window
-from lasmp.play import main
 
 
 def test_export_onnx_matches_torch_and_says_nothing_else(run_dir, loaded, tmp_path, capsys):

@@ -13,8 +13,8 @@ from omegaconf import OmegaConf
 from testkit import PLAY_LATENT_DIM as LATENT_DIM
 from testkit import ROOT
 
+from lasmp.cli.play import main
 from lasmp.deploy import load_deploy_env
-from lasmp.play import main
 
 PRIVILEGED = ("priv_explicit", "priv_implicit", "alignment", "critic")
 
@@ -63,9 +63,9 @@ def test_policy_from_checkpoint_config_and_deploy_ignores_privileged(loaded):
 def test_benchmark_episode_on_a_fresh_clone_makes_the_default_benchmark_as_evaluate_does(
     run_dir, tmp_path, monkeypatch
 ):
+    from lasmp.cli.play import use_benchmark_episodes
     from lasmp.deploy import load_deploy_env
     from lasmp.eval import benchmark as bm
-    from lasmp.play import use_benchmark_episodes
 
     monkeypatch.chdir(tmp_path)  # no benchmarks/ here
     env, _, _, _ = load_deploy_env(str(run_dir), num_envs=1)
@@ -76,9 +76,9 @@ def test_benchmark_episode_on_a_fresh_clone_makes_the_default_benchmark_as_evalu
 
 
 def test_benchmark_episode_plays_that_trajectory_and_robot(run_dir, tmp_path, capsys):
+    from lasmp.cli.play import use_benchmark_episodes
     from lasmp.deploy import load_deploy_env
     from lasmp.eval import benchmark as bm
-    from lasmp.play import use_benchmark_episodes
 
     bench_path = tmp_path / "bench.npz"
     bench = bm.generate(num_trajectories=6, num_robots=2, seed=0)
@@ -108,7 +108,7 @@ def test_benchmark_episode_plays_that_trajectory_and_robot(run_dir, tmp_path, ca
 
 
 def test_scenario_plays_the_real_motion_on_the_close_drive(run_dir, capsys, monkeypatch):
-    import lasmp.play as play
+    import lasmp.cli.play as play
     from lasmp.eval.real_motion import suite as rm
 
     seen = {}
@@ -138,9 +138,9 @@ def test_scenario_plays_the_real_motion_on_the_close_drive(run_dir, capsys, monk
 def test_policy_checkpoint_is_small_plays_the_same_and_refuses_to_resume(run_dir, tmp_path):
     from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint, read_checkpoint
     from lasmp.algo.checkpoint import main as ckpt_main
+    from lasmp.cli.train import make_runner
+    from lasmp.config.train import to_train_cfg
     from lasmp.deploy import load_deploy_env
-    from lasmp.train import make_runner
-    from lasmp.train_cfg import to_train_cfg
 
     full = latest_checkpoint(run_dir)
     slim = tmp_path / "policy.pt"

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import torch
 
+from lasmp.cli.play import main
 from lasmp.deploy import load_deploy_env
-from lasmp.play import main
 
 
 def test_video_and_snapshots(run_dir, tmp_path, gl):
@@ -51,7 +51,7 @@ def _times_s(captions: list[str]) -> list[float]:
 def test_snapshots_show_one_episode_from_its_first_state_to_its_last_before_the_reset(
     run_dir, tmp_path, monkeypatch, capsys
 ):
-    import lasmp.play as play
+    import lasmp.cli.play as play
 
     # the episode play.py shows (no --seed: the same every time), played here first: where it ends
     env, policy, _, _ = load_deploy_env(run_dir, num_envs=1)
@@ -96,7 +96,7 @@ class CollidingEnv:
 
 
 def test_snapshots_of_an_episode_cut_short_end_with_its_last_state_before_the_collision():
-    from lasmp.play import EpisodeStrip, rollout
+    from lasmp.cli.play import EpisodeStrip, rollout
 
     env = CollidingEnv(length=9)
     strip = EpisodeStrip(env)

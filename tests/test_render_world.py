@@ -12,7 +12,7 @@ import torch
 @pytest.fixture(scope="module")
 def plain_env():
     """An env of its own (the render tests move its state)."""
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
@@ -145,7 +145,7 @@ def test_follow_camera_keeps_robot_in_frame(plain_env, gl, plf_pose):
 
 
 def test_render_model_of_rough_static_task():
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.rough_static.cfg import RoughStaticCfg
     from lasmp.envs.rough_static.env import RoughStaticEnv
     from lasmp.render.world import DECOR_PREFIX, build_render_model

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from lasmp.algo.checkpoint import OPTIMIZER_KEYS, read_checkpoint
-from lasmp.light_checkpoint import LIGHT_KIND
+from lasmp.algo.checkpoint.light import LIGHT_KIND
 
 ROOT = Path(__file__).resolve().parents[1]
 MAX_RESULT_FILE_BYTES = 5 * 1024**2  # 5 MiB: a 10,000-episode record compressed is about 2.5
@@ -59,7 +59,7 @@ def test_no_tracked_file_under_results_exceeds_5_mib():
 def test_every_tracked_checkpoint_is_a_policy_checkpoint_not_a_training_state():
     """A policy checkpoint (`python -m lasmp.algo.checkpoint policy`) is marked kind "policy" and
     holds no optimizer states and no envs' running state: a few MB that play and evaluate; its light
-    form (`python -m lasmp.light_checkpoint`, kind "actor") holds the actor alone. A full
+    form (`python -m lasmp.algo.checkpoint.light`, kind "actor") holds the actor alone. A full
     checkpoint (24-29 MB) belongs in the run directory it resumes, not in git. Read with
     weights_only, as every checkpoint is: a tracked file that is not plain tensors fails here too."""
     checkpoints = [p for p in tracked("results", "resources") if p.suffix == ".pt"]

@@ -1,4 +1,4 @@
-"""What a resume takes from its command line (`lasmp.hydra_cli.explicit_keys`): the keys the overrides
+"""What a resume takes from its command line (`lasmp.cli.command_line.explicit_keys`): the keys the overrides
 set, read from the overrides alone, for the overrides the resume tests give
 (tests/bad_inputs/test_bad_resume.py) and for each kind of group option."""
 
@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from hydra import initialize_config_dir
 
-from lasmp.hydra_cli import explicit_keys
-from lasmp.train_cfg import register_configs
+from lasmp.cli.command_line import explicit_keys
+from lasmp.config.train import register_configs
 
 ROOT = Path(__file__).resolve().parents[1]
 register_configs()
@@ -80,7 +80,7 @@ def test_the_printed_resume_command_pastes_back_to_the_same_paths(run_dir):
 
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from lasmp.hydra_cli import resume_command
+    from lasmp.cli.command_line import resume_command
 
     checkpoint = f"{run_dir}/model_7.pt"
     command = resume_command(checkpoint, run_dir, 3)

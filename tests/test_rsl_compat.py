@@ -1,6 +1,6 @@
 """Every private or undocumented rsl_rl name lasmp uses is still in the installed rsl_rl: an upgrade
 that drops or renames one fails here, naming it, instead of deep in a training run
-(lasmp/rsl_compat.py says what each is for)."""
+(lasmp/compat/rsl_rl.py says what each is for)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from rsl_rl.utils.logger import Logger
 from tensordict import TensorDict
 from testkit import tensorboard_logger
 
-from lasmp.rsl_compat import (
+from lasmp.compat.rsl_rl import (
     NORMALIZER_STD_KEY,
     NORMALIZER_VAR_KEY,
     LoggerCompat,
@@ -24,7 +24,7 @@ from lasmp.rsl_compat import (
     raised_storing_code_state,
 )
 
-# lasmp/rsl_compat.py: the Logger's buffers it reads and restores
+# lasmp/compat/rsl_rl.py: the Logger's buffers it reads and restores
 LOGGER_BUFFERS = ("rewbuffer", "lenbuffer", "cur_reward_sum", "cur_episode_length", "ep_extras")
 # read by lasmp/algo/console.py and runner.py, as rsl_rl's runner and logger read them
 LOGGER_ATTRIBUTES = ("log_dir", "writer", "cfg", "num_envs", "gpu_world_size")

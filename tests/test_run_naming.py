@@ -12,9 +12,9 @@ import pytest
 from hydra import compose, initialize_config_dir
 from testkit import TINY_CLI, run_script
 
+from lasmp.config.recipe import recipe_of, run_label, run_slug
+from lasmp.config.train import register_configs, to_train_cfg
 from lasmp.eval import benchmark as bm
-from lasmp.recipe import recipe_of, run_label, run_slug
-from lasmp.train_cfg import register_configs, to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = TINY_CLI

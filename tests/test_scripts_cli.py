@@ -1,6 +1,6 @@
 """Every script under scripts/ is a tool as the entry points are: `--help` prints its usage,
 an unknown option is refused by argparse in one line, and a JSON file it reads that is missing or cut
-short is named in one line (lasmp.inputs.read_json), never a traceback. Each script runs as a user
+short is named in one line (lasmp.io.inputs.read_json), never a traceback. Each script runs as a user
 runs it: a subprocess of the venv's python, from the repository root."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from lasmp.inputs import InputError, read_json
+from lasmp.io.inputs import InputError, read_json
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "scripts").glob("*.py"))

@@ -96,8 +96,8 @@ def test_a_recorded_run_keeps_its_policy_in_the_light_form_beside_its_config_and
     from testkit import tiny
 
     from lasmp.algo.checkpoint import read_checkpoint
-    from lasmp.light_checkpoint import LIGHT_KIND
-    from lasmp.train import train
+    from lasmp.algo.checkpoint.light import LIGHT_KIND
+    from lasmp.cli.train import train
 
     mod = Study()  # scripts/study.py's modules, each name set where it is read
     monkeypatch.setattr(mod.plan, "ROOT", tmp_path)

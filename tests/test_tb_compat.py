@@ -1,4 +1,4 @@
-"""What lasmp reads of TensorBoard below its public API (lasmp/tb_compat.py says why) still reads
+"""What lasmp reads of TensorBoard below its public API (lasmp/compat/tensorboard.py says why) still reads
 what it means in the installed torch and TensorBoard: an upgrade that renames one fails here."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from testkit import tensorboard_logger
 from torch.utils.tensorboard import SummaryWriter
 
-from lasmp.tb_compat import events_file, is_writer_thread, raised_in_tensorboard, writer_thread_error
+from lasmp.compat.tensorboard import events_file, is_writer_thread, raised_in_tensorboard, writer_thread_error
 
 
 def test_the_events_file_is_the_one_the_writer_appends_to(tmp_path):

@@ -9,9 +9,9 @@ from omegaconf import OmegaConf
 from testkit import ROOT
 
 from lasmp.algo.checkpoint import read_checkpoint
-from lasmp.config import ConfigError
-from lasmp.train import make_runner, train
-from lasmp.train_cfg import register_configs, to_train_cfg
+from lasmp.cli.train import make_runner, train
+from lasmp.config.base import ConfigError
+from lasmp.config.train import register_configs, to_train_cfg
 
 register_configs()
 

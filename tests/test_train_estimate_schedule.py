@@ -13,8 +13,8 @@ from testkit import param_copy as params
 from testkit import runner_rollout as rollout
 
 from lasmp.algo.checkpoint import read_checkpoint
+from lasmp.cli.train import make_runner
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES
-from lasmp.train import make_runner
 
 
 def test_iterations_on_the_estimates_follow_the_schedule_and_keep_ppo_off_the_estimators(tmp_path):
@@ -92,7 +92,7 @@ def test_a_learner_resumed_from_the_studys_checkpoint_goes_on_at_its_place_in_th
     """The study's first LAS-MP seed 0 (results/study/diagnosis/init_std1_seed0) stopped after
     iteration 449 of a schedule that acts on the estimates from iteration 100 on, every iteration:
     it goes on at 450, on the estimates."""
-    from lasmp.checkpoint_cfg import checkpoint_cfg
+    from lasmp.config.checkpoint import checkpoint_cfg
 
     data = read_checkpoint(ROOT / "results" / "study" / "diagnosis" / "init_std1_seed0" / "policy_449.pt")
     cfg = checkpoint_cfg(data, num_envs=4, seed=0)

@@ -8,8 +8,8 @@ import torch
 from testkit import runner_rollout as rollout
 from testkit import tiny
 
+from lasmp.cli.train import make_runner
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
-from lasmp.train import make_runner
 
 
 @pytest.mark.parametrize(

@@ -15,8 +15,8 @@ from testkit import param_copy as params
 from testkit import runner_rollout as rollout
 from testkit import tiny
 
+from lasmp.cli.train import make_runner
 from lasmp.modules.obs_groups import GROUP_HISTORY
-from lasmp.train import make_runner
 
 
 def test_ppo_update_leaves_estimators_alone_and_roa_moves_them(tmp_path):

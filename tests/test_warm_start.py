@@ -1,4 +1,4 @@
-"""Warm start (`warm_start=`, lasmp/warm_start.py): a new run from a policy or light checkpoint takes its
+"""Warm start (`warm_start=`, lasmp/cli/warm_start.py): a new run from a policy or light checkpoint takes its
 actor (and critic where it has one), curriculum, validation curve and iteration, starts the optimizers
 anew, and is refused where it cannot go as asked, before anything is written."""
 
@@ -9,11 +9,11 @@ import torch
 from testkit import tiny
 
 from lasmp.algo.checkpoint import CheckpointError, policy_checkpoint, read_checkpoint
-from lasmp.config import ConfigError
-from lasmp.light_checkpoint import write_light
-from lasmp.rundir import RunDirError
-from lasmp.train import make_runner, train
-from lasmp.warm_start import WarmStart
+from lasmp.algo.checkpoint.light import write_light
+from lasmp.cli.train import make_runner, train
+from lasmp.cli.warm_start import WarmStart
+from lasmp.config.base import ConfigError
+from lasmp.io.rundir import RunDirError
 
 
 @pytest.fixture(scope="module")
@@ -124,7 +124,7 @@ def test_a_warm_start_from_a_checkpoint_with_a_non_finite_weight_is_refused_nami
 
 
 def test_the_resume_command_after_a_stop_of_a_warm_started_run_drops_the_warm_start(monkeypatch):
-    import lasmp.hydra_cli as cli
+    import lasmp.cli.command_line as cli
 
     given = ["seed=3", "warm_start=results/policy_364.pt", "runner.log_dir=runs/x", "runner.max_iterations=9"]
     monkeypatch.setattr(cli, "hydra_overrides", lambda: given)

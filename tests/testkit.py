@@ -17,13 +17,13 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 
 from lasmp.algo.checkpoint import CHECKPOINT_FORMAT
-from lasmp.config import build_env_cfg
+from lasmp.config.base import build_env_cfg
+from lasmp.config.train import TrainCfg, to_train_cfg
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.envs.moving_platform.rewards import RewardsCfg
 from lasmp.envs.moving_platform.state import StepState
-from lasmp.train_cfg import TrainCfg, to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -288,8 +288,8 @@ def bare_learner(tmp_path, algorithm=None, **over):
     """A PPOROA on a tiny env, built as rsl_rl's runner builds it, without a runner or a logger:
     (learner, env, steps per rollout)."""
     from lasmp.algo.ppo_roa import PPOROA
-    from lasmp.train import make_env
-    from lasmp.train_cfg import rsl_rl_cfg
+    from lasmp.cli.train import make_env
+    from lasmp.config.train import rsl_rl_cfg
 
     cfg = tiny(tmp_path, **over)
     env = make_env(cfg)
@@ -327,7 +327,7 @@ PLAY_LATENT_DIM = 8  # not the default (16): play must take it from the checkpoi
 
 def tensorboard_logger(log_dir):
     """rsl_rl's logger (our LoggerCompat) writing TensorBoard into `log_dir`, for one env on the CPU."""
-    from lasmp.rsl_compat import LoggerCompat
+    from lasmp.compat.rsl_rl import LoggerCompat
 
     return LoggerCompat(
         log_dir=str(log_dir),

@@ -16,7 +16,7 @@ import re
 import statistics
 from collections.abc import Callable, Iterator
 
-from lasmp.rsl_compat import LoggerCompat
+from lasmp.compat.rsl_rl import LoggerCompat
 
 NONE_YET = "\u2013"  # a progress field with no value yet
 

@@ -45,7 +45,7 @@ from lasmp.algo.checkpoint import (
 from lasmp.algo.console import OneLineLogger, network_line, without_network_printout
 from lasmp.algo.stopping import INTERRUPT_SIGNALS, RolloutAbandoned, StoppingMixin, TrainingInterrupted
 from lasmp.algo.validating import ValidatingMixin
-from lasmp.rsl_compat import OnPolicyRunnerCompat
+from lasmp.compat.rsl_rl import OnPolicyRunnerCompat
 
 
 def _array_bytes(obj, seen: set[int] | None = None) -> int:

@@ -111,7 +111,7 @@ class StoppingMixin:
         handler, so nothing can print after the handler's line. A checkpoint being written is left
         as its hidden temporary file (`.model_<it>.pt.*.tmp`), never under its final name (the
         write renames only a complete file); the next command that holds the run directory removes
-        it (`lasmp.atomic.remove_stale_temporaries`, when `lasmp.rundir` claims the directory)."""
+        it (`lasmp.io.atomic.remove_stale_temporaries`, when `lasmp.io.rundir` claims the directory)."""
         for stream in (sys.stdout, sys.stderr):
             try:
                 stream.flush()

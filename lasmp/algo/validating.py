@@ -21,7 +21,7 @@ from lasmp.algo.checkpoint import (
     obs_layout,
     policy_only,
 )
-from lasmp.atomic import atomic_open
+from lasmp.io.atomic import atomic_open
 
 BEST_POLICY = "policy_best.pt"  # the run's policy of the best validation score
 VALIDATION_FILE = "validation.json"  # the run's validation curve

@@ -33,11 +33,11 @@ import torch
 from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
-from lasmp.config import BaseEnvCfg
+from lasmp.config.base import BaseEnvCfg
 from lasmp.envs.backends import make_backend
 from lasmp.envs.robot import OBS_DIM, RobotIndex, as_slice
 from lasmp.envs.rotations import yaw_quat
-from lasmp.plainstate import PlainStateError, pack, unpack
+from lasmp.io.plainstate import PlainStateError, pack, unpack
 from lasmp.robots import a1
 
 
@@ -48,12 +48,12 @@ class BaseEnv(VecEnv):
     @classmethod
     def check_cfg(cls, cfg) -> None:
         """Refuse anything but the task's config dataclass: an env takes a config validated once, where
-        it was built (`lasmp.config.build_env_cfg`, `lasmp.train_cfg.to_train_cfg`), never a dict."""
+        it was built (`lasmp.config.base.build_env_cfg`, `lasmp.config.train.to_train_cfg`), never a dict."""
         if not isinstance(cfg, cls.cfg_class):
             name = cls.cfg_class.__name__
             raise TypeError(
                 f"{cls.__name__} takes a validated {name}, got a {type(cfg).__name__}: build one with "
-                f"lasmp.config.build_env_cfg(overrides, schema={name})"
+                f"lasmp.config.base.build_env_cfg(overrides, schema={name})"
             )
 
     def __init__(
@@ -114,9 +114,9 @@ class BaseEnv(VecEnv):
     )
     TASK_STATE: tuple[str, ...] = ()
     # dataclasses of the running state that a fresh env may not hold yet (None): the only classes a
-    # checkpoint's running state may build (`lasmp.plainstate`)
+    # checkpoint's running state may build (`lasmp.io.plainstate`)
     RUN_STATE_CLASSES: tuple[type, ...] = ()
-    # 3: plain data (`lasmp.plainstate`), loadable without unpickling; 2: pickled objects; 1: numpy
+    # 3: plain data (`lasmp.io.plainstate`), loadable without unpickling; 2: pickled objects; 1: numpy
     RUN_STATE_FORMAT = 3
 
     def state_dict(self, run: bool = True) -> dict:

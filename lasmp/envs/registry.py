@@ -1,14 +1,14 @@
 """The one table of tasks: task name -> its env class, which names its config schema (`cfg_class`).
 
 Everything that knows the tasks reads it: the Hydra `env` options and the check of `task=`
-(`lasmp/train_cfg.py`), the env a run or a checkpoint builds (`make_env`); `cfg/task/<name>.yaml`
+(`lasmp/config/train.py`), the env a run or a checkpoint builds (`make_env`); `cfg/task/<name>.yaml`
 names a task of it. A new task is a line here. Not in `lasmp/envs/__init__.py`: the task envs
 import modules of that package, which would then import them back.
 """
 
 from __future__ import annotations
 
-from lasmp.config import BaseEnvCfg, ConfigError
+from lasmp.config.base import BaseEnvCfg, ConfigError
 from lasmp.envs.base_env import BaseEnv
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.envs.rough_static.env import RoughStaticEnv

@@ -33,7 +33,7 @@ import mujoco
 import numpy as np
 import torch
 
-from lasmp.config import DomainRandRanges
+from lasmp.config.base import DomainRandRanges
 from lasmp.envs.rotations import euler_zyx_from_mat, quat_to_mat, rotate_inv
 from lasmp.robots import a1
 

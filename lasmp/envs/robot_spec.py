@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import mujoco
 
-from lasmp.config import SimCfg
+from lasmp.config.base import SimCfg
 from lasmp.robots import a1
 
 

@@ -19,7 +19,6 @@ import json
 import os
 import sys
 
-from lasmp.atomic import claim_output
 from lasmp.envs import trajectories as T
 from lasmp.eval.benchmark_file import (
     FORMAT_NAME,
@@ -46,8 +45,9 @@ from lasmp.eval.benchmark_set import (
     generate,
     generate_set,
 )
-from lasmp.inputs import InputError, check_out_file, int_arg, seed_arg
-from lasmp.inputs import file_sha256 as sha256
+from lasmp.io.atomic import claim_output
+from lasmp.io.inputs import InputError, check_out_file, int_arg, seed_arg
+from lasmp.io.inputs import file_sha256 as sha256
 
 # the names the benchmark's users read here (bm.generate, bm.save, ...), wherever they are defined
 __all__ = [
@@ -142,7 +142,7 @@ def _report(info: dict, as_json: bool) -> None:
 
 def main(argv=None) -> int:
     """The CLI (module docstring). `generate` checks --out's extension and claims the file
-    (lasmp.atomic.claim_output: an existing file only with --force) before drawing anything; a user's error or a failed write is one
+    (lasmp.io.atomic.claim_output: an existing file only with --force) before drawing anything; a user's error or a failed write is one
     line `error: ...` and exit code 2."""
     ap = argparse.ArgumentParser(prog="python -m lasmp.eval.benchmark", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)

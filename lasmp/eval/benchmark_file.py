@@ -32,12 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import TEMPORARY_SUFFIX, AtomicWriteError, atomic_open
-from lasmp.config import DomainRandCfg
+from lasmp.config.base import DomainRandCfg
 from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.domain_rand import Intrinsics
 from lasmp.eval.benchmark_set import Benchmark, generate
-from lasmp.inputs import InputError, check_seed
+from lasmp.io.atomic import TEMPORARY_SUFFIX, AtomicWriteError, atomic_open
+from lasmp.io.inputs import InputError, check_seed
 
 FORMAT_NAME = "lasmp-benchmark"
 FORMAT_VERSION = 2  # 2: approximating B-splines, the construction recorded (spline, spline_degree)

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lasmp.config import DomainRandCfg
+from lasmp.config.base import DomainRandCfg
 from lasmp.envs import trajectories as T
 from lasmp.envs.moving_platform.domain_rand import Intrinsics, sample_intrinsics
 

@@ -38,10 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import AtomicWriteError, claim_output
 from lasmp.eval import failure
 from lasmp.eval.episodes import PROBE_COLUMNS, EpisodesFileError, episodes_path, read_csv
-from lasmp.inputs import InputError, check_out_file, float_arg, int_arg
+from lasmp.io.atomic import AtomicWriteError, claim_output
+from lasmp.io.inputs import InputError, check_out_file, float_arg, int_arg
 
 TILT_BINS_RAD = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)  # the last bin is [0.7, inf)
 FRICTION_BINS = (0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3)  # the testing range, U(0.7, 1.3)
@@ -225,7 +225,7 @@ def plot(t: dict[str, np.ndarray], b: dict, path: Path) -> bool:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lasmp.atomic import atomic_write_with
+    from lasmp.io.atomic import atomic_write_with
 
     panels = [
         ("N (waypoints)", b["by_n"]),

@@ -11,9 +11,9 @@ from pathlib import Path
 import torch
 
 from lasmp.algo.checkpoint import CheckpointError, check_compatible
+from lasmp.config.recipe import recipe_name
 from lasmp.deploy import check_backend, load_policy
 from lasmp.eval import benchmark as bm
-from lasmp.recipe import recipe_name
 
 DEFAULT_BENCHMARK = Path(bm.XI_EVAL.path)
 
@@ -62,7 +62,7 @@ def build(args, extra_env: dict | None = None, checkpoint: Path | None = None):
     """(env, controller, policy with estimators or None, method name); `extra_env`: env overrides;
     `checkpoint`: the file --checkpoint names (a run directory's latest, resolved once by the caller,
     so the file loaded is the file hashed)."""
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
@@ -103,7 +103,7 @@ def build(args, extra_env: dict | None = None, checkpoint: Path | None = None):
 def policy_eval_env(cfg, num_envs: int, seed: int, extra_env: dict | None = None):
     """The moving-platform env a policy of config `cfg` (a TrainCfg) is evaluated in: its own env config
     under the benchmark's overrides (`eval_env_overrides`), `num_envs` envs."""
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 

@@ -59,7 +59,7 @@ from lasmp.eval.mirror import MirroredBenchmark, mirror_report
 from lasmp.eval.paper import paper_key, paper_row
 from lasmp.eval.report import markdown, plot_estimates
 from lasmp.eval.run import run_benchmark
-from lasmp.inputs import int_arg, seed_arg
+from lasmp.io.inputs import int_arg, seed_arg
 
 NUM_BATCHES = 10
 

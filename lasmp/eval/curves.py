@@ -12,7 +12,7 @@ Given several runs, one figure compares them: the four main panels with one smoo
 (`--last-iteration` cuts every run there, to compare runs at one budget), and `--json` gives each
 run's windows.
 
-`--out` is claimed before the event files are read (`lasmp.atomic.claim_output`): an existing file is
+`--out` is claimed before the event files are read (`lasmp.io.atomic.claim_output`): an existing file is
 refused without `--force`.
 """
 
@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import atomic_write_with, claim_output
-from lasmp.inputs import InputError, check_out_file
+from lasmp.io.atomic import atomic_write_with, claim_output
+from lasmp.io.inputs import InputError, check_out_file
 
 MAIN_TAGS = {
     "Episode/success_rate": "success rate",

@@ -23,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import atomic_open
 from lasmp.envs.moving_platform.scene import PLATFORM_JOINTS
 from lasmp.eval.failure import FAILURE_KEYS
 from lasmp.eval.gait import GAIT_KEYS
 from lasmp.eval.metrics import EXTRA_METRICS, METRICS
+from lasmp.io.atomic import atomic_open
 
 AXES = tuple(j.removeprefix("plf_") for j in PLATFORM_JOINTS)  # x, y, z, yaw, pitch, roll
 PROBE_COLUMNS = (

@@ -5,7 +5,7 @@
   of the same run-directory and file names in different places (results/study/lasmp/seed0/policy_449.pt
   and results/study/lasmp_centre/seed0/policy_449.pt) never share one.
 - `ResultDir`: the output directory of one evaluation, claimed before any episode is played. It
-  holds a lock (`lasmp.rundir.RunLock`'s: `fcntl.flock` on a file holding the PID; the kernel drops
+  holds a lock (`lasmp.io.rundir.RunLock`'s: `fcntl.flock` on a file holding the PID; the kernel drops
   it however the process ends) for the whole evaluation, so a second evaluation into the same
   directory is refused instead of silently replacing the first. Every file of the result is written
   into a private staging directory, then put in place as one unit: a directory that did not exist is
@@ -36,8 +36,8 @@ from lasmp.algo.checkpoint import latest_checkpoint
 from lasmp.eval import episodes as ep
 from lasmp.eval.benchmark import VALIDATION
 from lasmp.eval.report import atomic_write_text, dumps
-from lasmp.inputs import file_sha256, missing_dirs, size_in_words
-from lasmp.rundir import LOCK_NAME, RunLock
+from lasmp.io.inputs import file_sha256, missing_dirs, size_in_words
+from lasmp.io.rundir import LOCK_NAME, RunLock
 
 METRICS_FILE = "metrics.json"  # written last: a directory with one holds a whole result
 ESTIMATES_PLOT = "estimates.png"

@@ -37,10 +37,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from lasmp.atomic import atomic_open
 from lasmp.eval import episodes as ep
 from lasmp.eval.report import dumps
-from lasmp.inputs import file_sha256
+from lasmp.io.atomic import atomic_open
+from lasmp.io.inputs import file_sha256
 
 METRICS_FILE = "metrics.json"
 RELATIVE_TOLERANCE = 1e-9  # metrics recomputed from the same records agree to rounding

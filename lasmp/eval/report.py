@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import atomic_open, atomic_write_with
 from lasmp.eval.metrics import ALL_METRICS
 from lasmp.eval.mirror import mirror_markdown
+from lasmp.io.atomic import atomic_open, atomic_write_with
 
 LABELS = {
     "collision_rate": "collision rate",

@@ -15,7 +15,7 @@ spread can be estimated from one), and the per-seed values. Printed as a Markdow
 `mean ± ci95` (a single seed: its value alone) and the number of seeds, with, for the methods that estimate, the
 estimators' errors averaged over seeds. Written (atomically, strict JSON) to --json, by default
 results/study/summary.json; a file already there is refused unless --force (the name is claimed
-before the results are read, lasmp.atomic.claim_output):
+before the results are read, lasmp.io.atomic.claim_output):
 
     {"methods": {NAME: {"seeds": [DIR, ...],
                         "learner_per_seed": ["bfloat16" | "float32" | null, ...],
@@ -41,9 +41,9 @@ import numpy as np
 from scipy import stats
 
 from lasmp.algo.checkpoint import read_checkpoint
-from lasmp.atomic import claim_output
 from lasmp.eval.metrics import ALL_METRICS, METRICS
 from lasmp.eval.report import LABELS, atomic_write_text, dumps
+from lasmp.io.atomic import claim_output
 
 DEFAULT_JSON = Path("results") / "study" / "summary.json"
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import torch
 
-from lasmp.checkpoint_cfg import checkpoint_cfg
+from lasmp.config.checkpoint import checkpoint_cfg
 from lasmp.deploy import build_policy
 from lasmp.eval import benchmark as bm
 from lasmp.eval.build import policy_eval_env

@@ -9,8 +9,8 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lasmp.atomic import atomic_open, atomic_write_with
-from lasmp.inputs import file_sha256
+from lasmp.io.atomic import atomic_open, atomic_write_with
+from lasmp.io.inputs import file_sha256
 from lasmp.robots import a1
 
 if TYPE_CHECKING:

@@ -13,6 +13,7 @@ import torch
 from tensordict import TensorDict
 from torch import nn
 
+from lasmp.compat.rsl_rl import MLPModelCompat
 from lasmp.modules.encoder import ImplicitEncoder
 from lasmp.modules.estimator import HistoryEstimator
 from lasmp.modules.obs_groups import (
@@ -29,7 +30,6 @@ from lasmp.modules.obs_groups import (
     alignment_from_estimates,
     explicit_indices,
 )
-from lasmp.rsl_compat import MLPModelCompat
 
 
 class LasmpActor(MLPModelCompat):

@@ -5,7 +5,7 @@ Why here and not in each writer: a run writes up to four files, and a user needs
 checked before the env is built (a read-only directory found after a five-minute rollout is five
 minutes lost), and, when the run fails or is interrupted, one line saying which were written.
 
-Each file is claimed (`lasmp.atomic.claim_output`: created exclusively as an empty placeholder) before
+Each file is claimed (`lasmp.io.atomic.claim_output`: created exclusively as an empty placeholder) before
 the env is built, so a file the user already has is refused without --force, and a second run started
 meanwhile cannot write the same name (no window between a check and the write). The export is claimed
 file by file (policy.onnx and policy.json in --out), not as a folder: --out may well be a directory
@@ -21,8 +21,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from lasmp.atomic import AtomicWriteError, claim_output
-from lasmp.inputs import check_out_file, missing_dirs
+from lasmp.io.atomic import AtomicWriteError, claim_output
+from lasmp.io.inputs import check_out_file, missing_dirs
 from lasmp.modules.export import export_policy
 
 EXPORT_FILES = ("policy.onnx", "policy.json")  # what --export onnx writes into --out

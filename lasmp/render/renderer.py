@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import TEMPORARY_SUFFIX, AtomicWriteError, atomic_open
+from lasmp.io.atomic import TEMPORARY_SUFFIX, AtomicWriteError, atomic_open
 from lasmp.render.caption import caption_text, draw_caption
 from lasmp.render.world import build_render_model
 
@@ -192,7 +192,7 @@ def ffmpeg_exe() -> str:
 class VideoWriter:
     """mp4 (H.264) at one frame per policy step, streamed to an ffmpeg process.
 
-    Written the way lasmp.atomic writes: into a hidden temporary file beside `path`, renamed over it
+    Written the way lasmp.io.atomic writes: into a hidden temporary file beside `path`, renamed over it
     by `close()` only once ffmpeg has finished without error; `abort()` (and any failure) removes it.
     So an interrupted or failed run leaves no half-written video, and an older file at `path` as it
     was. ffmpeg is driven directly (not through imageio's writer) because imageio neither reports

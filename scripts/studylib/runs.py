@@ -106,13 +106,13 @@ def train(method: str, seed: int, until: int | None = None) -> None:
 
 def record_run(method: str, seed: int, at: int) -> None:
     """Beside the run's evaluation: its config, its policy at 'at' iterations in the light form (the
-    actor and its normalizers, 0.96 MB, lasmp.light_checkpoint; the full checkpoint, with the critic,
+    actor and its normalizers, 0.96 MB, lasmp.algo.checkpoint.light; the full checkpoint, with the critic,
     the optimizers and the envs' running state, stays in runs/) and its learning curve to 'at'
     (lasmp.eval.curves' windows of 10 iterations): a run adds about 1 MB to the repository."""
     from lasmp.algo.checkpoint import policy_checkpoint
+    from lasmp.algo.checkpoint.light import convert_in_place
     from lasmp.eval.curves import read_scalars, truncated, windows
     from lasmp.eval.report import atomic_write_text
-    from lasmp.light_checkpoint import convert_in_place
 
     d, out = run_dir(method, seed), result_dir(method, seed, at)
     out.mkdir(parents=True, exist_ok=True)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from lasmp.inputs import InputError, read_json
+from lasmp.io.inputs import InputError, read_json
 
 from . import plan
 from .plan import (

@@ -14,8 +14,8 @@ from pathlib import Path
 import torch
 from omegaconf import OmegaConf
 
-from lasmp.train import train
-from lasmp.train_cfg import to_train_cfg
+from lasmp.cli.train import train
+from lasmp.config.train import to_train_cfg
 
 
 def main() -> None:

@@ -17,10 +17,10 @@ from tensordict import TensorDict
 from testkit import hostile_checkpoint, tiny
 
 from lasmp.algo.checkpoint import PLAIN_RUN_STATE_FORMAT, CheckpointError, convert_trusted, read_checkpoint
+from lasmp.cli.train import make_runner, train
+from lasmp.config.train import register_configs
 from lasmp.envs.base_env import BaseEnv
-from lasmp.plainstate import PlainStateError, pack, unpack
-from lasmp.train import make_runner, train
-from lasmp.train_cfg import register_configs
+from lasmp.io.plainstate import PlainStateError, pack, unpack
 
 ROOT = Path(__file__).resolve().parents[2]
 register_configs()

@@ -275,7 +275,7 @@ def test_a_killed_rank_leaves_the_other_saying_what_happened_and_how_to_resume(t
     assert f"The newest checkpoint is {newest}" in said[0], rest[-4000:]
     assert "torchrun --nproc_per_node=2 train.py" in rest and f"resume={newest}" in rest
     # torchrun's own ChildFailedError summary remains; no traceback of the worker's
-    assert "Connection closed by peer" not in rest and "lasmp/train.py" not in rest, rest[-4000:]
+    assert "Connection closed by peer" not in rest and "lasmp/cli/train.py" not in rest, rest[-4000:]
     # the agent terminates the survivor as soon as it sees the victim gone: the survivor still ends
     # with its own exit code 1, its report whole, not by that SIGTERM
     assert "Signal 15 (SIGTERM) received" not in rest and "exitcode  : 1 " in rest, rest[-4000:]

@@ -16,10 +16,10 @@ from testkit import ROOT, tiny
 
 from lasmp.algo import checkpoint as ckpt
 from lasmp.algo.checkpoint import CheckpointError, is_policy_only, latest_checkpoint, read_checkpoint
-from lasmp.atomic import AtomicWriteError
-from lasmp.config import ConfigError
-from lasmp.train import train
-from lasmp.train_cfg import register_configs, to_train_cfg
+from lasmp.cli.train import train
+from lasmp.config.base import ConfigError
+from lasmp.config.train import register_configs, to_train_cfg
+from lasmp.io.atomic import AtomicWriteError
 
 register_configs()
 KEEP_ONE = {"max_iterations": 3, "keep_full": 1}  # saves after iterations 0, 1 and 2
@@ -95,8 +95,8 @@ def test_a_policy_checkpoint_given_to_resume_is_refused_naming_the_newest_full_o
 def test_play_and_evaluate_take_a_converted_policy_checkpoint_and_a_run_directory_its_newest(
     run_copy, tmp_path, capsys
 ):
+    from lasmp.cli.play import main as play
     from lasmp.eval.cli import main as evaluate
-    from lasmp.play import main as play
 
     assert latest_checkpoint(run_copy).name == "model_2.pt"  # the newest, of either kind
     assert play(["--checkpoint", str(run_copy / "policy_0.pt"), "--steps", "5"]) == 0

@@ -9,8 +9,8 @@ from testkit import tiny
 
 from lasmp.algo import precision as prec
 from lasmp.algo.precision import cpu_has_fast_bf16, resolve_precision
-from lasmp.config import ConfigError
-from lasmp.train import make_runner, train
+from lasmp.cli.train import make_runner, train
+from lasmp.config.base import ConfigError
 
 AVX2_ONLY = """processor\t: 0
 vendor_id\t: AuthenticAMD

@@ -20,8 +20,8 @@ from omegaconf import OmegaConf
 from testkit import tiny
 
 from lasmp.algo.checkpoint import atomic_torch_save, read_checkpoint
-from lasmp.plainstate import unpack
-from lasmp.train import make_runner, train
+from lasmp.cli.train import make_runner, train
+from lasmp.io.plainstate import unpack
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -243,7 +243,7 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
     if task == "rough_static":  # the task's own policy and env schema, as train.py composes them
         from hydra import compose, initialize_config_dir
 
-        from lasmp.train_cfg import register_configs
+        from lasmp.config.train import register_configs
 
         register_configs()
         with initialize_config_dir(config_dir=str(ROOT / "cfg"), version_base="1.3"):
@@ -312,7 +312,7 @@ def test_resume_is_exact_the_same_parameters_as_an_uninterrupted_run(tmp_path, t
 def test_a_running_state_from_another_env_version_or_backend_is_refused_with_a_warning():
     """A running state saved by the numpy env (before the GPU backend: no format mark) or by another
     backend cannot be restored into this env: it is skipped with a warning, the episodes restart."""
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 

@@ -7,14 +7,14 @@ import pytest
 import torch
 from testkit import tiny
 
-from lasmp.config import ConfigError
+from lasmp.config.base import ConfigError
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES
 
 
 def _learner(tmp_path, epochs: int = 1, **symmetry):
     from lasmp.algo.ppo_roa import PPOROA
-    from lasmp.train import make_env
-    from lasmp.train_cfg import rsl_rl_cfg
+    from lasmp.cli.train import make_env
+    from lasmp.config.train import rsl_rl_cfg
 
     algo = {"estimate_rollout_every": 1, "estimate_rollout_start": 0, "symmetry_cfg": symmetry}
     cfg = tiny(tmp_path, algo={"num_mini_batches": 2, "num_learning_epochs": epochs, **algo})

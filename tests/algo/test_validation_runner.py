@@ -12,10 +12,10 @@ from testkit import tiny
 
 from lasmp.algo.runner import LasmpRunner
 from lasmp.algo.validating import BEST_POLICY, VALIDATION_FILE
+from lasmp.cli.train import make_env, make_runner, make_validator
+from lasmp.config.train import rsl_rl_cfg, to_plain
 from lasmp.eval import benchmark as bm
 from lasmp.eval.validation import Score, Validator
-from lasmp.train import make_env, make_runner, make_validator
-from lasmp.train_cfg import rsl_rl_cfg, to_plain
 
 
 class Scripted:

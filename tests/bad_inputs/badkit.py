@@ -4,7 +4,7 @@ process would, the checks of a clear refusal, and the bad files several of them 
 The bad-input matrix: what a hostile file or a hurried user gives the tools. Each case asserts a
 clear error (exit code != 0, a message that names the problem, no traceback) or the correct
 behaviour, and that nothing was lost (the files already there are unchanged). Most cases call the
-entry points in this process (`lasmp.train.main` after Hydra's composition,
+entry points in this process (`lasmp.cli.train.main` after Hydra's composition,
 `lasmp.algo.checkpoint.main`, `lasmp.eval.cli.main`); a few run the real CLI where only it shows the
 behaviour (Hydra's error printing, signals, another process holding a run's lock).
 
@@ -27,9 +27,9 @@ import numpy as np
 from hydra import compose, initialize_config_dir
 from hydra.errors import CompactHydraException
 
+from lasmp.config.train import register_configs
 from lasmp.envs import trajectories as trj
 from lasmp.eval import benchmark as bm
-from lasmp.train_cfg import register_configs
 
 ROOT = Path(__file__).resolve().parents[2]
 register_configs()
@@ -82,14 +82,14 @@ def call(fn, *args) -> Outcome:
 
 def _entry(cfg, overrides: list[str]) -> int:
     """What train.py does with a composed config."""
-    import lasmp.train as lt
+    import lasmp.cli.train as lt
 
     if hasattr(lt, "main"):
         return lt.main(cfg, overrides)
     # an older train.py, without main(): its train(cfg)
     from lasmp.algo.checkpoint import CheckpointError
     from lasmp.algo.stopping import TrainingInterrupted
-    from lasmp.config import ConfigError
+    from lasmp.config.base import ConfigError
 
     try:
         lt.train(cfg)

@@ -190,7 +190,7 @@ def test_an_older_or_foreign_format_is_still_not_a_lasmp_checkpoint(tmp_path):
 
 # -- the commands that load a checkpoint ---------------------------------------------------------
 def test_play_given_an_onnx_model_names_it_and_does_not_advise_convert(tmp_path):
-    from lasmp.play import main as play
+    from lasmp.cli.play import main as play
 
     onnx = Path(shutil.copy(SHIPPED_ONNX, tmp_path / "policy.onnx"))
     out = call(play, ["--checkpoint", str(onnx), "--steps", "1"])

@@ -1,4 +1,4 @@
-"""The environment a user brings (lasmp/preflight.py): a MUJOCO_GL that mujoco refuses, runner.logger=wandb
+"""The environment a user brings (lasmp/cli/preflight.py): a MUJOCO_GL that mujoco refuses, runner.logger=wandb
 without a W&B login, env.backend=warp without the gpu extra. Each ended in a library's traceback, the
 last two only after the envs were built; each is now one line naming the cause (`error: ...`, exit 2),
 said before the work starts.
@@ -18,7 +18,7 @@ import pytest
 import torch
 from badkit import ROOT, Outcome, _bench_case, call, evaluate, refused, tiny
 
-from lasmp.preflight import wandb_login_error
+from lasmp.cli.preflight import wandb_login_error
 
 SHIPPED = ROOT / "resources" / "policies" / "lasmp_a1.pt"
 NO_ENV = (
@@ -100,7 +100,7 @@ def test_a_wandb_login_in_the_netrc_or_the_offline_mode_passes_the_check(tmp_pat
     # what `wandb login` leaves: the key in ~/.netrc (W&B reads it for its old host too)
     (home / ".netrc").write_text(f"machine api.wandb.ai\n  login user\n  password {'k' * 40}\n")
     (home / ".netrc").chmod(0o600)
-    check = "from lasmp.preflight import wandb_login_error\nprint('check:', wandb_login_error())"
+    check = "from lasmp.cli.preflight import wandb_login_error\nprint('check:', wandb_login_error())"
     for env in (no_wandb_login(home), {**no_wandb_login(tmp_path), "WANDB_MODE": "offline"}):
         done = subprocess.run(
             [sys.executable, "-c", check], env=env, capture_output=True, text=True, timeout=120
@@ -141,7 +141,7 @@ def warp_checkpoint(tmp_path) -> Path:
 def test_play_and_evaluate_of_a_warp_checkpoint_without_mujoco_warp_are_refused_naming_it(
     tmp_path, warp_checkpoint, monkeypatch
 ):
-    from lasmp.play import main as play
+    from lasmp.cli.play import main as play
 
     def no_env(*args, **kwargs):
         raise AssertionError("an env was built before the backend was checked")

@@ -1,10 +1,10 @@
 """Files the user already has: every converted writer claims its output file
-before the work (create-exclusive, `lasmp.atomic.claim_output`) and refuses one that is already there
+before the work (create-exclusive, `lasmp.io.atomic.claim_output`) and refuses one that is already there
 without --force: exit code != 0, one line naming it, no traceback, its bytes unchanged; with --force it
 is replaced; a run that fails after its claim leaves no empty file. Writers covered:
 `lasmp.eval.results_table --json`, `lasmp.eval.benchmark generate`, `lasmp.envs.trajectories generate`
 and `plot`, play.py (--video, --snapshots, --export onnx --out), `lasmp.algo.checkpoint policy` and
-`convert`, `lasmp.light_checkpoint SRC DST`, `lasmp.eval.breakdown --plot`, `lasmp.eval.curves --out`
+`convert`, `lasmp.algo.checkpoint.light SRC DST`, `lasmp.eval.breakdown --plot`, `lasmp.eval.curves --out`
 and `lasmp.eval.real_motion generate`; the scripts' outputs are
 in test_bad_existing_script_outputs.py."""
 
@@ -18,10 +18,9 @@ import numpy as np
 import pytest
 from badkit import ROOT, call, refused, succeeded
 
-import lasmp.light_checkpoint as light_tool
-import lasmp.play as play
+import lasmp.algo.checkpoint.light as light_tool
+import lasmp.cli.play as play
 from lasmp.algo import checkpoint as ckpt_tool
-from lasmp.atomic import OutputExistsError, claim_output
 from lasmp.envs.trajectories import cli as trj_cli
 from lasmp.eval import benchmark as bm
 from lasmp.eval import benchmark_file
@@ -32,6 +31,7 @@ from lasmp.eval import results_table as rt
 from lasmp.eval.metrics import ALL_METRICS
 from lasmp.eval.real_motion import __main__ as rm_tool
 from lasmp.eval.real_motion import suite as rm_suite
+from lasmp.io.atomic import OutputExistsError, claim_output
 
 USER_DATA = b"user data\n"
 POLICY = ROOT / "resources" / "policies" / "lasmp_a1.pt"  # the shipped policy checkpoint

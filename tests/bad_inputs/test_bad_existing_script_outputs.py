@@ -1,5 +1,5 @@
 """Files the user already has, the scripts' share: each script that writes a file
-the user names (--out, --json) claims it before its minutes of play (`lasmp.atomic.claim_output`), so
+the user names (--out, --json) claims it before its minutes of play (`lasmp.io.atomic.claim_output`), so
 an existing file is refused without --force (exit code != 0, one line naming it, no traceback, its
 bytes unchanged) and replaced with it; a Ctrl-C during the play leaves no empty file. The play itself
 (minutes of MuJoCo) is replaced here by a stand-in of a few lines: what is tested is the file's
@@ -19,8 +19,8 @@ from badkit import ROOT, call, refused, succeeded
 from testkit import load_script
 
 import lasmp.eval.build as eval_build
-from lasmp.atomic import atomic_open
 from lasmp.eval import platform_probe as pp
+from lasmp.io.atomic import atomic_open
 
 USER_DATA = b"user data\n"
 POLICY = str(ROOT / "resources" / "policies" / "lasmp_a1.pt")

@@ -1,9 +1,9 @@
 """Sizes that cannot fit in memory, refused up front with the estimate and the limit they meet.
 
-Every limit counts (`lasmp.memory.available_memory`): the machine's free memory, this process's
+Every limit counts (`lasmp.io.memory.available_memory`): the machine's free memory, this process's
 `ulimit -v` (RLIMIT_AS) and each cgroup limit along its path (v2 memory.max, v1 memory.limit_in_bytes).
 Every size counts too: a training's envs, their rollout storage (runner.num_steps_per_env), their
-observation history, the networks and the validation env (`lasmp.train_resources.memory_need`); a
+observation history, the networks and the validation env (`lasmp.cli.resources.memory_need`); a
 trajectory set's rows (`python -m lasmp.envs.trajectories ... --num N`).
 
 The limits are lowered in a child process (RLIMIT_AS) or given as mocked cgroup files."""
@@ -19,11 +19,11 @@ import pytest
 from badkit import ROOT, call, refused
 from hydra import compose, initialize_config_dir
 
-from lasmp.config import ConfigError
+from lasmp.cli.resources import check_memory, memory_need
+from lasmp.config.base import ConfigError
+from lasmp.config.train import TrainCfg, to_train_cfg
 from lasmp.envs.trajectories.cli import main as trajectories_main
-from lasmp.memory import available_memory
-from lasmp.train_cfg import TrainCfg, to_train_cfg
-from lasmp.train_resources import check_memory, memory_need
+from lasmp.io.memory import available_memory
 
 GiB = 1 << 30
 
@@ -128,8 +128,8 @@ def test_the_estimate_counts_each_process_of_a_torchrun_job():
 UNDER_RLIMIT_AS = """
 import json, resource, sys
 from hydra import compose, initialize_config_dir
-from lasmp.train_cfg import register_configs, to_train_cfg
-from lasmp.train_resources import check_memory
+from lasmp.config.train import register_configs, to_train_cfg
+from lasmp.cli.resources import check_memory
 root, what = sys.argv[1], sys.argv[2]
 
 def held():

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from badkit import ROOT, call, files, refused, remount, succeeded
 
-import lasmp.play as play
-from lasmp.play import main
+import lasmp.cli.play as play
+from lasmp.cli.play import main
 
 CHECKPOINT = str(ROOT / "resources" / "policies" / "lasmp_a1.pt")
 
@@ -252,7 +252,7 @@ FRAME = np.zeros((480, 640, 3), np.uint8)
 
 
 def test_ffmpeg_stopping_mid_stream_is_a_write_error_naming_the_video_not_a_broken_pipe(tmp_path, gl):
-    from lasmp.atomic import AtomicWriteError
+    from lasmp.io.atomic import AtomicWriteError
     from lasmp.render.renderer import VideoWriter
 
     writer = VideoWriter(tmp_path / "play.mp4", fps=50.0)
@@ -269,7 +269,7 @@ def test_ffmpeg_stopping_mid_stream_is_a_write_error_naming_the_video_not_a_brok
 
 
 def test_a_disk_turning_read_only_under_the_video_is_reported_as_such(tmpfs, gl):
-    from lasmp.atomic import AtomicWriteError
+    from lasmp.io.atomic import AtomicWriteError
     from lasmp.render.renderer import VideoWriter
 
     disk = tmpfs(size="1m")

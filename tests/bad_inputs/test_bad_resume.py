@@ -14,9 +14,9 @@ from badkit import _truncated, _write, files, latest, refused, succeeded, tiny, 
 from omegaconf import OmegaConf
 from testkit import hostile_checkpoint
 
-from lasmp import plainstate
 from lasmp.algo import checkpoint as ckpt_tool
 from lasmp.envs.trajectories.splines import PiecewisePoly
+from lasmp.io import plainstate
 
 
 # -- checkpoints given to resume -----------------------------------------------------------------

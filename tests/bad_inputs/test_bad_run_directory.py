@@ -61,7 +61,7 @@ def test_a_second_training_into_a_locked_run_directory_names_the_first_ones_pid(
         [
             sys.executable,
             "-c",
-            "import sys, time\nfrom lasmp.rundir import RunLock\nRunLock(sys.argv[1]).acquire()\n"
+            "import sys, time\nfrom lasmp.io.rundir import RunLock\nRunLock(sys.argv[1]).acquire()\n"
             "print('locked', flush=True)\ntime.sleep(120)",
             str(run),
         ],
@@ -156,8 +156,8 @@ def test_a_default_run_directory_already_taken_in_the_same_second_gets_a_suffix(
     the first's directory (it would be refused as one that holds a run)."""
     import datetime as real
 
-    import lasmp.train as lt
-    from lasmp.train_cfg import TrainCfg
+    import lasmp.cli.train as lt
+    from lasmp.config.train import TrainCfg
 
     class Frozen(real.datetime):
         @classmethod

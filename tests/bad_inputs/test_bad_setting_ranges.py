@@ -1,5 +1,5 @@
 """Every numeric setting is checked for meaning: each has a range that a physical or computational
-reason sets (`lasmp.config.Bound`), and a value outside it is refused at start-up with a ConfigError
+reason sets (`lasmp.config.base.Bound`), and a value outside it is refused at start-up with a ConfigError
 that names the key (train.py prints it as one line, `error: ...`, exit 2).
 
 The walk covers the class, not a list of examples: it visits every numeric leaf of the composed default
@@ -19,10 +19,10 @@ import pytest
 from badkit import ROOT, refused, tiny, train, train_py
 from hydra import compose, initialize_config_dir
 
-from lasmp.config import MIN_HISTORY_LENGTH, ConfigError
+from lasmp.config.base import MIN_HISTORY_LENGTH, ConfigError
+from lasmp.config.train import TASKS, TrainCfg, to_train_cfg, validate_train_cfg
 from lasmp.envs import registry
 from lasmp.modules.estimator import HistoryEstimator
-from lasmp.train_cfg import TASKS, TrainCfg, to_train_cfg, validate_train_cfg
 
 # Keys where any value is meaningful, with the reason. None today: every number here is a size, a time,
 # a scale, a weight, a rate or a seed, and each has a bound past which it means nothing.

@@ -116,7 +116,7 @@ def test_a_sigterm_in_the_first_rollout_of_a_resume_keeps_the_resumed_checkpoint
 # the checkpoint of the first one
 SLOW_SAVE = textwrap.dedent("""
     import builtins, io, runpy, sys, time
-    import lasmp.atomic
+    import lasmp.io.atomic
 
     class Slow(io.FileIO):
         said = False
@@ -130,7 +130,7 @@ SLOW_SAVE = textwrap.dedent("""
             time.sleep(0.2)
             return super().write(b)
 
-    lasmp.atomic.open = lambda path, mode="r": Slow(path, mode) if mode == "wb" else builtins.open(path, mode)
+    lasmp.io.atomic.open = lambda path, mode="r": Slow(path, mode) if mode == "wb" else builtins.open(path, mode)
     sys.argv = sys.argv[1:]  # [train.py, overrides...]
     runpy.run_path(sys.argv[0], run_name="__main__")
 """)

@@ -1,4 +1,4 @@
-"""Hydra sweeps (`python train.py -m ...`, lasmp/hydra_cli.py) as a careless user runs them: a config-key
+"""Hydra sweeps (`python train.py -m ...`, lasmp/cli/command_line.py) as a careless user runs them: a config-key
 typo, a job that fails in the middle, a Ctrl-C. A typo was worded by Hydra (its misleading `+key`
 hint) instead of the project's "unknown config key" line; a failing job (`-m seed=1,-1,2`) ended the
 sweep there, and the jobs after it never ran without a word. Now a typo is refused as in a single

@@ -69,7 +69,7 @@ CONFIG_CASES = {
     "negative platform mass": (["env.platform.mass_kg=-1"], "env.platform.mass_kg"),
     "feet far above the platform": (["env.init_state.foot_clearance_m=1"], "foot_clearance_m"),
     "negative joint speed limit": (["env.termination.max_joint_vel_rad_s=-1"], "max_joint_vel_rad_s"),
-    # one rule for every seed (lasmp.inputs.check_seed), before any env is built (T03, T04)
+    # one rule for every seed (lasmp.io.inputs.check_seed), before any env is built (T03, T04)
     "a negative seed": (["seed=-1"], r"seed must be an integer in \[0, 2\*\*32 - 1\], got -1"),
     "a seed of 2**64": (["seed=18446744073709551616"], r"seed must be an integer in \[0, 2\*\*32 - 1\]"),
     "a seed just past 2**32 - 1": (["seed=4294967296"], r"seed must be an integer"),
@@ -105,9 +105,9 @@ def test_an_env_count_that_cannot_fit_in_memory_is_refused_up_front_with_its_est
 MEASURE_ENV_GROWTH = """
 import dataclasses, json, os, sys
 from hydra import compose, initialize_config_dir
-from lasmp.train import make_env
-from lasmp.train_cfg import register_configs, to_train_cfg
-from lasmp.train_resources import env_bytes
+from lasmp.cli.train import make_env
+from lasmp.config.train import register_configs, to_train_cfg
+from lasmp.cli.resources import env_bytes
 
 def resident():
     return int(open("/proc/self/statm").read().split()[1]) * os.sysconf("SC_PAGE_SIZE")

@@ -1,5 +1,5 @@
 """Ctrl-C in the seconds a command spends loading torch, MuJoCo and Hydra: one line, no traceback of
-whichever module was importing (lasmp/ctrl_c.py), for the three scripts and `python -m lasmp.<tool>`."""
+whichever module was importing (lasmp/io/ctrl_c.py), for the three scripts and `python -m lasmp.<tool>`."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from lasmp.ctrl_c import MESSAGE
+from lasmp.io.ctrl_c import MESSAGE
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -57,6 +57,6 @@ def test_ctrl_c_while_a_command_loads_ends_it_in_one_line(tmp_path, command):
 
 
 def test_an_uncaught_ctrl_c_in_a_program_that_imports_lasmp_keeps_pythons_own_report():
-    code = "import lasmp.ctrl_c, lasmp.train_cfg; raise KeyboardInterrupt"
+    code = "import lasmp.io.ctrl_c, lasmp.config.train; raise KeyboardInterrupt"
     proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert "Traceback" in proc.stderr and MESSAGE not in proc.stderr

@@ -9,7 +9,7 @@ import pytest
 import torch
 from testkit import platform_env as make
 
-from lasmp.config import ConfigError, build_env_cfg
+from lasmp.config.base import ConfigError, build_env_cfg
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv

@@ -12,7 +12,7 @@ import torch
 from testkit import platform_env as make
 from testkit import static_platform
 
-from lasmp.config import build_env_cfg
+from lasmp.config.base import build_env_cfg
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv

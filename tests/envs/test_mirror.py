@@ -8,7 +8,7 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from lasmp.config import build_env_cfg
+from lasmp.config.base import build_env_cfg
 from lasmp.envs import mirror as m
 from lasmp.envs.moving_platform import mirror as mm
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg

@@ -9,10 +9,10 @@ import numpy as np
 import torch
 
 from lasmp.algo.checkpoint import CHECKPOINT_FORMAT, read_checkpoint
-from lasmp.config import build_env_cfg
+from lasmp.config.base import build_env_cfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.envs.rough_static.env import RoughStaticEnv
-from lasmp.plainstate import pack
+from lasmp.io.plainstate import pack
 
 
 def make(cls, n: int, seed: int):

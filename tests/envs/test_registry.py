@@ -9,9 +9,9 @@ import pytest
 import yaml
 from hydra.core.config_store import ConfigStore
 
-from lasmp.config import ConfigError, build_env_cfg
+from lasmp.config.base import ConfigError, build_env_cfg
+from lasmp.config.train import TASKS, register_configs
 from lasmp.envs import registry
-from lasmp.train_cfg import TASKS, register_configs
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from lasmp.config import build_env_cfg
+from lasmp.config.base import build_env_cfg
 from lasmp.envs.moving_platform import env as moving_platform_env
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv

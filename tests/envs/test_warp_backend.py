@@ -16,7 +16,7 @@ import torch
 pytest.importorskip("mujoco_warp")
 wp = pytest.importorskip("warp")
 
-from lasmp.config import SimCfg  # noqa: E402
+from lasmp.config.base import SimCfg  # noqa: E402
 from lasmp.envs.backends import make_backend  # noqa: E402
 from lasmp.envs.backends.cpu import CpuBatchSim  # noqa: E402
 from lasmp.envs.backends.warp import WarpSim  # noqa: E402

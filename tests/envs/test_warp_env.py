@@ -14,7 +14,7 @@ import torch
 
 pytest.importorskip("mujoco_warp", reason="the gpu extra is not installed: pip install -e '.[gpu]'")
 
-from lasmp.config import build_env_cfg  # noqa: E402
+from lasmp.config.base import build_env_cfg  # noqa: E402
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg  # noqa: E402
 from lasmp.envs.moving_platform.env import MovingPlatformEnv  # noqa: E402
 from lasmp.eval import benchmark as bm  # noqa: E402

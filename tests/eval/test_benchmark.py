@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lasmp.config import DomainRandCfg
+from lasmp.config.base import DomainRandCfg
 from lasmp.eval import benchmark as B
 
 REPO = Path(__file__).resolve().parents[2]
@@ -57,7 +57,7 @@ def test_same_seed_same_bytes_different_seed_different(tmp_path):
     assert a.read_bytes() == b.read_bytes()
     assert B.sha256(a) == B.sha256(b) == hashlib.sha256(a.read_bytes()).hexdigest()
     assert a.read_bytes() != c.read_bytes() and B.sha256(a) != B.sha256(c)
-    # the atomic write leaves no temporary file (lasmp.atomic names them ".<name>.<random>.tmp")
+    # the atomic write leaves no temporary file (lasmp.io.atomic names them ".<name>.<random>.tmp")
     assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == ["a.npz", "b.npz", "c.npz"]
     assert list(tmp_path.rglob("*.tmp")) == []
 

@@ -39,7 +39,7 @@ def test_each_benchmark_episode_has_its_own_initial_pose_draws_whatever_the_set_
 def test_an_episode_starts_at_the_same_heading_whichever_env_plays_it_and_whatever_played_before():
     """play.py --benchmark-episode k must show the robot as the evaluation met it: episode 3 played
     by env 0 after a fresh start and by env 1 after episodes 0..2 starts at one heading."""
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
 
@@ -64,7 +64,7 @@ def test_an_episode_starts_at_the_same_heading_whichever_env_plays_it_and_whatev
 def test_shrinking_the_tail_steps_only_playing_envs_and_changes_no_episode():
     import torch
 
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.eval.build import eval_env_overrides

@@ -212,7 +212,7 @@ def test_yaw_alone_gives_no_world_tilt_even_from_a_tilted_start():
 
 @pytest.mark.parametrize("h_des_from", ["top", "centre"])
 def test_the_height_band_is_centred_037_m_above_the_top_whatever_the_reward_reads(h_des_from, monkeypatch):
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.eval.build import eval_env_overrides

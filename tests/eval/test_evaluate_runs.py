@@ -76,8 +76,8 @@ def sha256(path) -> str:
 
 
 def test_evaluate_rs_controllers_end_to_end(tmp_path):
-    from lasmp.train import train
-    from lasmp.train_cfg import to_train_cfg
+    from lasmp.cli.train import train
+    from lasmp.config.train import to_train_cfg
 
     cfg = to_train_cfg(
         OmegaConf.create(
@@ -121,8 +121,8 @@ def test_evaluate_rs_controllers_end_to_end(tmp_path):
 
 
 def test_evaluate_lasmp_checkpoint_reports_estimator_accuracy_and_plots(tmp_path):
-    from lasmp.train import train
-    from lasmp.train_cfg import to_train_cfg
+    from lasmp.cli.train import train
+    from lasmp.config.train import to_train_cfg
 
     cfg = to_train_cfg(
         OmegaConf.create(
@@ -166,7 +166,7 @@ def test_evaluate_lasmp_checkpoint_reports_estimator_accuracy_and_plots(tmp_path
 
 
 def test_oracle_command_points_to_the_platform_centre_in_the_heading_frame():
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.envs.moving_platform.readout import read_scene

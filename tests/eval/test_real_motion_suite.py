@@ -75,7 +75,7 @@ def test_episodes_pair_every_scenario_with_the_same_robots(small_bench):
 
 
 def test_suite_overrides_reach_the_env_config():
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
 
     def build(drive: str) -> MovingPlatformCfg:
         return build_env_cfg(

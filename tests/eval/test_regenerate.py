@@ -16,15 +16,15 @@ from tensordict import TensorDict
 from testkit import tiny
 
 from lasmp.algo.checkpoint import policy_checkpoint
+from lasmp.algo.checkpoint.light import LIGHT_KIND, convert_in_place
+from lasmp.algo.checkpoint.light import main as light_main
+from lasmp.cli.train import train
 from lasmp.deploy import load_policy
 from lasmp.eval import benchmark as bm
 from lasmp.eval import breakdown as bd
 from lasmp.eval import episodes as ep
 from lasmp.eval import regenerate as rg
 from lasmp.eval.cli import main as evaluate
-from lasmp.light_checkpoint import LIGHT_KIND, convert_in_place
-from lasmp.light_checkpoint import main as light_main
-from lasmp.train import train
 
 ROOT = Path(__file__).resolve().parents[2]
 FILES = (ep.EPISODES_FILE, ep.MIRROR_EPISODES_FILE)

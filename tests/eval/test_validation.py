@@ -74,7 +74,7 @@ def test_evaluate_plays_the_validation_benchmark_by_name_and_writes_apart_from_x
 
 
 def _trained(tmp_path, iterations: int = 2):
-    from lasmp.train import train
+    from lasmp.cli.train import train
 
     cfg = tiny(tmp_path / "run", runner={"max_iterations": iterations, "validation_interval": 0})
     return train(cfg)
@@ -175,7 +175,7 @@ def test_train_cli_validates_keeps_the_best_policy_and_its_curve(tmp_path):
     ],
 )
 def test_validation_settings_out_of_range_are_refused_naming_the_key(tmp_path, key, value, message):
-    from lasmp.config import ConfigError
+    from lasmp.config.base import ConfigError
 
     with pytest.raises(ConfigError, match=message):
         tiny(tmp_path, runner={key: value})

@@ -15,12 +15,12 @@ import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo.checkpoint import read_checkpoint
+from lasmp.cli.play import main
+from lasmp.cli.train import train
 from lasmp.deploy import load_deploy_env, obs_window
 from lasmp.envs.robot import OBS_DIM
 from lasmp.modules.export import METADATA_VERSION, SIDECAR_HASH_KEY, read_onnx_metadata
-from lasmp.play import main
 from lasmp.robots import a1
-from lasmp.train import train
 
 # not the defaults (20, 0.25, 4): the metadata must come from the checkpoint's config
 HISTORY_LENGTH, ACTION_SCALE, DECIMATION = 12, 0.3, 5

@@ -2,10 +2,10 @@
 
 A checkpoint (format "lasmp-checkpoint-v1") is a dict saved with `torch.save` that holds only tensors,
 numbers, strings and plain containers, and is read with `torch.load(weights_only=True)`: loading a
-file from elsewhere never runs code (the env's running state is stored by `lasmp.plainstate`):
+file from elsewhere never runs code (the env's running state is stored by `lasmp.io.plainstate`):
 - the learner's state (`LasmpRunner.save`: all networks with their normalizers, both optimizers);
 - `iter`: the last *completed* iteration (a resume continues at iter + 1);
-- `config`: the resolved TrainCfg as a plain dict (`lasmp.checkpoint_cfg` rebuilds it); `obs_layout`
+- `config`: the resolved TrainCfg as a plain dict (`lasmp.config.checkpoint` rebuilds it); `obs_layout`
   and `num_actions`;
 - `env_state`: the env's own state: the curriculum's level and window, and under "run" every env's
   running state (physics, per-env model fields, buffers, trajectories, intrinsics), so that a

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from lasmp.atomic import OutputExistsError, atomic_open, claim_output
-from lasmp.inputs import InputError, check_out_file
-from lasmp.rundir import CHECKPOINT_NAME, FULL, POLICY, run_checkpoints
+from lasmp.io.atomic import OutputExistsError, atomic_open, claim_output
+from lasmp.io.inputs import InputError, check_out_file
+from lasmp.io.rundir import CHECKPOINT_NAME, FULL, POLICY, run_checkpoints
 
 CHECKPOINT_VERSION = 1
 
@@ -37,7 +37,7 @@ REQUIRED_KEYS = ("actor_state_dict", "critic_state_dict", "config", "obs_layout"
 PLAIN_RUN_STATE_FORMAT = 3
 
 
-# The envs' running state names the class of each dataclass it holds (`lasmp.plainstate.pack`), and
+# The envs' running state names the class of each dataclass it holds (`lasmp.io.plainstate.pack`), and
 # `unpack` restores one only into a live value of that class with the same fields. A checkpoint
 # that names a class or a field otherwise reads back through this table, kept here so that the
 # envs' classes carry one name each: task -> attribute -> rules (class in the file, class now,
@@ -244,7 +244,7 @@ def convert_trusted(src: str | Path, dst: str | Path, force: bool = False) -> Pa
     UNPICKLES `src`, which runs whatever code it holds: only for a file the user trusts (the CLI
     asks for --trust). `dst` is checked (extension, a writable directory) and claimed (`claim_output`:
     an existing file only with `force`) before `src` is read."""
-    from lasmp.plainstate import PlainStateError, pack
+    from lasmp.io.plainstate import PlainStateError, pack
 
     src = checkpoint_file(src)
     why = _not_torch(src)
@@ -275,7 +275,7 @@ def convert_trusted(src: str | Path, dst: str | Path, force: bool = False) -> Pa
 
 
 def _out_file(dst: str | Path) -> Path:
-    """`dst` as a checkpoint file the tool may write (lasmp.inputs.check_out_file: its extension, not a
+    """`dst` as a checkpoint file the tool may write (lasmp.io.inputs.check_out_file: its extension, not a
     directory, a writable directory), as CheckpointError. A file already there is `_claim`'s to refuse."""
     try:
         return check_out_file(dst, suffixes=CHECKPOINT_SUFFIXES, force=True, option="OUT")
@@ -285,7 +285,7 @@ def _out_file(dst: str | Path) -> Path:
 
 def _claim(dst: Path, force: bool, src: Path | None = None) -> contextlib.ExitStack:
     """`with _claim(dst, force, src): <read src, write dst atomically>`: `dst` claimed for this run
-    before the work (`lasmp.atomic.claim_output`, create-exclusive), so an existing file, or one
+    before the work (`lasmp.io.atomic.claim_output`, create-exclusive), so an existing file, or one
     another run claimed meanwhile, is refused without `force`: a CheckpointError saying what the file
     is (`src` itself, a full or a policy checkpoint), naming OUT and --force. The claim is removed
     when the block fails before writing."""
@@ -305,7 +305,7 @@ def _claim(dst: Path, force: bool, src: Path | None = None) -> contextlib.ExitSt
 
 
 def atomic_torch_save(obj, path: str | Path) -> None:
-    """torch.save to `path` atomically; a full disk is an AtomicWriteError naming `path` (lasmp.atomic
+    """torch.save to `path` atomically; a full disk is an AtomicWriteError naming `path` (lasmp.io.atomic
     finds the OSError behind torch's RuntimeError)."""
     with atomic_open(path) as f:
         torch.save(obj, f)

@@ -19,7 +19,7 @@ from lasmp.algo.checkpoint.format import (
     is_policy_only,
     read_checkpoint,
 )
-from lasmp.rundir import FULL, POLICY, run_checkpoints
+from lasmp.io.rundir import FULL, POLICY, run_checkpoints
 
 
 def refuse_policy_only(data: dict) -> None:

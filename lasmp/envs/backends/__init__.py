@@ -40,7 +40,7 @@ from __future__ import annotations
 import mujoco
 import torch
 
-from lasmp.config import BACKENDS  # the one list, checked by the config (env.backend)
+from lasmp.config.base import BACKENDS  # the one list, checked by the config (env.backend)
 
 
 def make_backend(

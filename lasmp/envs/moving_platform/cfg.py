@@ -1,7 +1,7 @@
 """The moving-platform task's env config: `MovingPlatformCfg` and its parts (platform, trajectories,
-curriculum, rewards, termination), on top of the shared `lasmp.config.BaseEnvCfg`.
+curriculum, rewards, termination), on top of the shared `lasmp.config.base.BaseEnvCfg`.
 
-Hydra registers it as the `env` option `moving_platform` (`lasmp/train_cfg.py`, from the task registry
+Hydra registers it as the `env` option `moving_platform` (`lasmp/config/train.py`, from the task registry
 `lasmp/envs/registry.py`). The rewards' entry, `RewardsCfg`, lives with the terms that read it
 (`rewards.py`). This module imports those and the trajectory splines (to check kind and degree), never
 the env: `lasmp.envs.moving_platform.env` imports this module.
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from lasmp.config import MAX_JOINT_VEL, BaseEnvCfg, Bound, ConfigError, check_bounds
+from lasmp.config.base import MAX_JOINT_VEL, BaseEnvCfg, Bound, ConfigError, check_bounds
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.rewards import RewardsCfg
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from lasmp.config import DomainRandRanges
+from lasmp.config.base import DomainRandRanges
 from lasmp.envs.moving_platform.scene import PlatformGains
 from lasmp.envs.robot import (
     RobotIntrinsics,

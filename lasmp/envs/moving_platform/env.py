@@ -67,7 +67,7 @@ def initial_pose(u: np.ndarray, init) -> tuple[np.ndarray, np.ndarray]:
 
 class MovingPlatformEnv(BaseEnv):
     cfg_class = MovingPlatformCfg
-    # the observation groups it hands out: what a policy may read (lasmp.train_cfg checks it at start-up)
+    # the observation groups it hands out: what a policy may read (lasmp.config.train checks it at start-up)
     OBS_GROUPS = ("policy", "history", "priv_explicit", "priv_implicit", "alignment", "critic")
 
     def __init__(self, cfg: MovingPlatformCfg, device="cpu"):

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from lasmp.config import SimCfg
+from lasmp.config.base import SimCfg
 from lasmp.envs.moving_platform.cfg import PlatformCfg
 from lasmp.envs.robot_spec import add_robot_sensors, robot_spec
 from lasmp.robots import a1

@@ -2,5 +2,5 @@
 
 `lasmp.envs.rough_static.env.RoughStaticEnv` (config: `lasmp.envs.rough_static.cfg.RoughStaticCfg`),
 registered in `lasmp.envs.registry`. Nothing is imported here: the cfg module must import without
-the env (`lasmp.train_cfg` reads the schemas), and the env imports the cfg.
+the env (`lasmp.config.train` reads the schemas), and the env imports the cfg.
 """

@@ -1,7 +1,7 @@
 """The R-S baseline's env config (locomotion on static rough terrain): `RoughStaticCfg` and its parts
-(terrain, commands, pushes, rewards, termination), on top of the shared `lasmp.config.BaseEnvCfg`.
+(terrain, commands, pushes, rewards, termination), on top of the shared `lasmp.config.base.BaseEnvCfg`.
 
-Hydra registers it as the `env` option `rough_static` (`lasmp/train_cfg.py`, from the task registry
+Hydra registers it as the `env` option `rough_static` (`lasmp/config/train.py`, from the task registry
 `lasmp/envs/registry.py`). The rewards' entry, `RewardsCfg`, lives with the terms that read it
 (`rewards.py`). This module never imports the env: `lasmp.envs.rough_static.env` imports it.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from lasmp.config import (
+from lasmp.config.base import (
     MAX_JOINT_VEL,
     BaseEnvCfg,
     Bound,

@@ -54,7 +54,7 @@ SPAWN_FOOTPRINT_M = 0.4  # half-side of the square under the robot searched for 
 
 class RoughStaticEnv(BaseEnv):
     cfg_class = RoughStaticCfg
-    # the observation groups it hands out: what a policy may read (lasmp.train_cfg checks it at start-up)
+    # the observation groups it hands out: what a policy may read (lasmp.config.train checks it at start-up)
     OBS_GROUPS = ("policy", "history", "priv_explicit", "priv_implicit", "command", "critic")
 
     def __init__(self, cfg: RoughStaticCfg, device="cpu"):

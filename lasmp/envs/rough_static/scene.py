@@ -23,7 +23,7 @@ import numpy as np
 import torch
 from scipy.ndimage import uniform_filter
 
-from lasmp.config import SimCfg
+from lasmp.config.base import SimCfg
 from lasmp.envs.robot_spec import add_robot_sensors, robot_spec
 from lasmp.envs.rough_static.cfg import TerrainCfg
 

@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 
-from lasmp.atomic import OutputExistsError, atomic_open, claim_output
 from lasmp.envs.trajectories.fileformat import load, save
 from lasmp.envs.trajectories.generate import PROBE_ROWS, ranges_for_split, sample, sample_bytes
 from lasmp.envs.trajectories.splines import (
@@ -30,8 +29,9 @@ from lasmp.envs.trajectories.splines import (
     SplineSpec,
 )
 from lasmp.envs.trajectories.stats import print_table, statistics
-from lasmp.inputs import InputError, check_out_file, float_arg, int_arg, seed_arg, size_in_words
-from lasmp.memory import available_memory
+from lasmp.io.atomic import OutputExistsError, atomic_open, claim_output
+from lasmp.io.inputs import InputError, check_out_file, float_arg, int_arg, seed_arg, size_in_words
+from lasmp.io.memory import available_memory
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 # what a sampled set is drawn with, and its defaults (--num's is per command): with --file, none applies
@@ -48,7 +48,7 @@ def _traj_from_args(args) -> PiecewisePoly:
 
 def check_memory(num: int, ranges, spline: SplineSpec) -> None:
     """Refuse a --num whose trajectories cannot fit in memory, before sampling, with the estimate
-    (`sample_bytes`, a lower bound) and the limit it meets (`lasmp.memory.available_memory`): numpy would
+    (`sample_bytes`, a lower bound) and the limit it meets (`lasmp.io.memory.available_memory`): numpy would
     otherwise fail (or the machine swap) only after allocating what it could."""
     found = available_memory()
     need, per_row = sample_bytes(num, ranges, spline)

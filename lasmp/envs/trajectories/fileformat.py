@@ -34,9 +34,9 @@ import zipfile
 
 import numpy as np
 
-from lasmp.atomic import atomic_open
 from lasmp.envs.trajectories.splines import KIND_NAMES, SAMPLES, PiecewisePoly, SplineSpec
 from lasmp.envs.trajectories.user_made import TrajectoryFileError, check_knots
+from lasmp.io.atomic import atomic_open
 
 FORMAT_NAME = "lasmp-trajectories"
 FORMAT_VERSION = 2

@@ -1,7 +1,7 @@
 """``python -m lasmp.eval.real_motion {generate,plot,stats,table}``: the suite's file, figures and numbers.
 
 The files ``generate`` and ``plot`` write are checked (extension, directory) and claimed
-(`lasmp.atomic.claim_output`: an existing file is refused without ``--force``, with no window between a
+(`lasmp.io.atomic.claim_output`: an existing file is refused without ``--force``, with no window between a
 check and the write) before any motion is built; a claim the run did not write is removed; a write
 that fails is one line naming the file (exit 1).
 """
@@ -14,11 +14,11 @@ import json
 import sys
 from pathlib import Path
 
-from lasmp.atomic import claim_output
 from lasmp.envs import trajectories as trj
 from lasmp.eval.real_motion import suite as rm
 from lasmp.eval.real_motion.plots import plot_all
-from lasmp.inputs import check_out_file
+from lasmp.io.atomic import claim_output
+from lasmp.io.inputs import check_out_file
 from lasmp.motions.motion import to_trajectories
 
 

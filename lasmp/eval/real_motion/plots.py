@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from lasmp.atomic import atomic_write_with
 from lasmp.envs import trajectories as trj
+from lasmp.io.atomic import atomic_write_with
 from lasmp.motions.motion import Motion, derivatives
 
 

@@ -289,7 +289,7 @@ def platform_tracking(episodes: SuiteEpisodes, env_overrides_: dict) -> dict[str
     per scenario, until its first episode ends. RMS of the translational acceleration (second
     differences of the positions at the policy rate) of the platform and of its reference, and RMS
     tracking errors (translation m, rotation rad as the norm of the three joint angles)."""
-    from lasmp.config import build_env_cfg
+    from lasmp.config.base import build_env_cfg
     from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
     from lasmp.envs.moving_platform.env import MovingPlatformEnv
     from lasmp.eval.run import BenchmarkSource

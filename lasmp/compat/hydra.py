@@ -1,6 +1,6 @@
 """The one place lasmp reaches below Hydra's public API.
 
-train.py checks its command line before Hydra's app composes it (`lasmp.hydra_cli`): an override
+train.py checks its command line before Hydra's app composes it (`lasmp.cli.command_line`): an override
 naming no config key, in a single run or in any job of a sweep (`-m`), is worded by lasmp. For that it
 must read the command line as `hydra.main` will and expand a sweep into the jobs, in the order,
 Hydra's basic sweeper launches. Hydra's public API (`hydra.compose`, `initialize_config_dir`, the
@@ -14,7 +14,7 @@ offers neither, so these take from `hydra._internal`, and lasmp takes from it no
   (the default one, which train.py uses) expands a sweep's overrides into jobs: `basic_sweep_jobs`.
 
 Imported lazily: only train.py's command line needs Hydra's internals. rsl_rl's and TensorBoard's
-private names are read in the sibling modules `lasmp/rsl_compat.py` and `lasmp/tb_compat.py`.
+private names are read in the sibling modules `lasmp/compat/rsl_rl.py` and `lasmp/compat/tensorboard.py`.
 `tests/test_hydra_compat.py` exercises both against the installed Hydra, so that an upgrade that
 moves or renames them fails there, pointing here.
 """

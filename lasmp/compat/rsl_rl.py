@@ -27,8 +27,8 @@ Read outside this module, as rsl_rl's own runner and logger read them: the Logge
 `writer`, and the arguments it keeps (`cfg`, `num_envs`, `gpu_world_size`). The observation
 normalizer's statistics are read through its public `mean` and `std`.
 
-TensorBoard's and Hydra's private names are read in the sibling modules `lasmp/tb_compat.py` and
-`lasmp/hydra_compat.py`. This module sits in the lowest layer (docs/layout.md) so that both the
+TensorBoard's and Hydra's private names are read in the sibling modules `lasmp/compat/tensorboard.py` and
+`lasmp/compat/hydra.py`. This module sits in the lowest layer (docs/layout.md) so that both the
 networks (lasmp/modules) and the learner (lasmp/algo) can import it.
 
 `tests/test_rsl_compat.py` names each one and checks that the installed rsl_rl still has it and

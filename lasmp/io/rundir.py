@@ -22,7 +22,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from lasmp.atomic import remove_stale_temporaries
+from lasmp.io.atomic import remove_stale_temporaries
 
 LOCK_NAME = ".lock"
 FULL, POLICY = "model", "policy"  # the file name prefixes of full and policy checkpoints in a run

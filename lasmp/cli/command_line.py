@@ -1,7 +1,7 @@
 """train.py's command line, composed once before Hydra's app composes it, for the one failure
 Hydra words against us: an override naming no config key. Hydra's message suggests appending it
 with `+`, which the README rules out and validation would refuse anyway
-(`lasmp.config.check_known_keys`); ours names the key and the keys valid where it points. A key
+(`lasmp.config.base.check_known_keys`); ours names the key and the keys valid where it points. A key
 that a recipe (cfg/recipe/) sets and the env lacks is worded as the recipe's: the recipes are the
 moving platform's. A sweep (`-m`) is checked job by job, as Hydra's basic sweeper expands it.
 
@@ -20,8 +20,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lasmp.config import flatten
-from lasmp.hydra_compat import args_parser, basic_sweep_jobs
+from lasmp.compat.hydra import args_parser, basic_sweep_jobs
+from lasmp.config.base import flatten
 
 if TYPE_CHECKING:
     from hydra.plugins.config_source import ConfigResult
@@ -176,7 +176,7 @@ class Sweep:
 
 
 # -- what a command line sets, and the command that continues a run -------------------------------
-CFG_DIR = Path(__file__).resolve().parents[1] / "cfg"
+CFG_DIR = Path(__file__).resolve().parents[2] / "cfg"
 
 
 def explicit_keys(overrides: list[str]) -> set[str]:

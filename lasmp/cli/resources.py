@@ -1,5 +1,5 @@
 """What a training needs to fit before anything is built or written: memory for its envs, rollouts and
-networks (every size setting, against every memory limit: `lasmp.memory`), disk for its
+networks (every size setting, against every memory limit: `lasmp.io.memory`), disk for its
 first checkpoints. Why up front: allocating 100,000 envs takes minutes before it fails, and a disk too
 small fails at the first save, after the first iterations."""
 
@@ -11,12 +11,12 @@ import shutil
 from pathlib import Path
 
 from lasmp.algo.runner import LasmpRunner
-from lasmp.config import ConfigError
+from lasmp.config.base import ConfigError
+from lasmp.config.train import TrainCfg
 from lasmp.envs import registry
-from lasmp.inputs import size_in_words
-from lasmp.memory import available_memory
-from lasmp.rundir import RunDirError
-from lasmp.train_cfg import TrainCfg
+from lasmp.io.inputs import size_in_words
+from lasmp.io.memory import available_memory
+from lasmp.io.rundir import RunDirError
 
 FLOAT_BYTES = 4  # the rollout storage, the observations and the networks are float32
 # a network's parameter is held four times over while learning: the weights, their gradient, Adam's two moments
@@ -74,7 +74,7 @@ class MemoryNeed:
     per_env: dict[str, int]  # one env's parts (`env_bytes`)
     envs: int  # every env of every process
     networks: int  # every process's networks (`network_bytes`)
-    validation: int  # rank 0's validation env (lasmp.train.make_validator: moving_platform, interval > 0)
+    validation: int  # rank 0's validation env (lasmp.cli.train.make_validator: moving_platform, interval > 0)
 
     @property
     def total(self) -> int:
@@ -100,7 +100,7 @@ def memory_need(cfg: TrainCfg, processes: int = 1) -> MemoryNeed:
 def check_memory(cfg: TrainCfg, processes: int = 1, *, available: tuple[int, str] | None = None) -> None:
     """Refuse a training whose envs, rollout storage and networks cannot fit in memory before any env
     is built, with the estimate (`memory_need`, a lower bound) and the limit it meets
-    (`lasmp.memory.available_memory`, or `available` where given): allocating them would take minutes
+    (`lasmp.io.memory.available_memory`, or `available` where given): allocating them would take minutes
     before failing. `processes`: this machine's ranks of a torchrun job. The cpu backend only (warp's
     envs live on the GPU)."""
     if getattr(cfg.env, "backend", "cpu") != "cpu":

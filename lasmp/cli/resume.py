@@ -25,15 +25,16 @@ from lasmp.algo.checkpoint import (
     read_checkpoint,
     refuse_policy_only,
 )
-from lasmp.checkpoint_cfg import rebuilding
-from lasmp.rundir import RunDirError, describe, run_checkpoints, run_files
-from lasmp.train_cfg import TrainCfg, to_plain, to_train_cfg
+from lasmp.config.checkpoint import rebuilding
+from lasmp.config.train import TrainCfg, to_plain, to_train_cfg
+from lasmp.io.rundir import RunDirError, describe, run_checkpoints, run_files
 
 if TYPE_CHECKING:
     from lasmp.algo.runner import LasmpRunner
 
-from lasmp.checkpoint_sanity import check_state
-from lasmp.config import flatten
+from lasmp.algo.checkpoint.sanity import check_state
+from lasmp.config.base import flatten
+from lasmp.envs.trajectories.splines import PADDING
 
 # keys a resume takes from the command, never from the checkpoint's config
 FROM_COMMAND = ("resume", "resume_drop_env_state", "warm_start", "runner.log_dir")
@@ -93,7 +94,7 @@ def check_resume(cfg: TrainCfg, data: dict) -> dict[str, tuple]:
     the keys it changes from the checkpoint's config, {key: (saved, now)}."""
     path = data["path"]
     refuse_policy_only(data)
-    check_state(data, "it cannot be resumed (give an earlier checkpoint)")
+    check_state(data, "it cannot be resumed (give an earlier checkpoint)", PADDING)
     saved, now = flatten(data["config"]), flatten(to_plain(cfg))
     changed = {
         k: (saved[k], now[k])

@@ -4,8 +4,8 @@ of the library that met it: MUJOCO_GL at `import mujoco`, a missing W&B login af
 built, a missing MuJoCo Warp inside the env's construction. Each check gives one line naming the
 cause and the fix.
 
-`exit_unless_mujoco_imports` runs first in train.py, play.py and evaluate.py (after lasmp.ctrl_c,
-before anything imports mujoco); `training_environment_error` in `lasmp.train.train`, before any env is
+`exit_unless_mujoco_imports` runs first in train.py, play.py and evaluate.py (after lasmp.io.ctrl_c,
+before anything imports mujoco); `training_environment_error` in `lasmp.cli.train.train`, before any env is
 built; `backend_error` also where play and evaluation rebuild a checkpoint's env (`lasmp.deploy`)."""
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def wandb_login_error() -> str | None:
     asks for an API key (from WANDB_API_KEY, `wandb login`'s ~/.netrc or its settings) unless its mode
     is offline or disabled (WANDB_MODE, or `wandb offline`). Without one, wandb.init stops the run
     (no terminal) or prompts at it after the envs were built; both are refused here, up front. The
-    package itself is `lasmp.train_cfg.validate_logger`'s to check."""
+    package itself is `lasmp.config.train.validate_logger`'s to check."""
     if os.environ.get("WANDB_MODE", "").strip().lower() in WANDB_LOCAL_MODES:
         return None
     if os.environ.get("WANDB_API_KEY") or os.environ.get("WANDB_IDENTITY_TOKEN_FILE"):

@@ -34,10 +34,10 @@ from pathlib import Path
 import torch
 
 from lasmp.algo.checkpoint import CheckpointError
-from lasmp.config import ConfigError
+from lasmp.config.base import ConfigError
 from lasmp.deploy import load_deploy_env
 from lasmp.envs.trajectories import TrajectoryFileError
-from lasmp.inputs import InputError, int_arg, seed_arg
+from lasmp.io.inputs import InputError, int_arg, seed_arg
 from lasmp.modules.export import deploy_metadata
 from lasmp.render.outputs import EXPORT_FILES, Outputs, check_outputs, claim_outputs, export_into
 from lasmp.render.renderer import (

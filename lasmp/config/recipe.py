@@ -20,7 +20,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-RECIPE_DIR = Path(__file__).resolve().parents[1] / "cfg" / "recipe"
+RECIPE_DIR = Path(__file__).resolve().parents[2] / "cfg" / "recipe"
 # recipe file -> (the name a user reads, the run directory's name); the paper's method is LAS-MP
 RECIPES = {
     "lasmp_plus": ("LAS-MP+", "lasmp_plus"),

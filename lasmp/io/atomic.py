@@ -105,7 +105,7 @@ class OutputExistsError(FileExistsError):
 
 
 def _missing_dirs(path: Path) -> list[Path]:
-    """The directories of `path` that do not exist yet, outermost first (lasmp.inputs.missing_dirs)."""
+    """The directories of `path` that do not exist yet, outermost first (lasmp.io.inputs.missing_dirs)."""
     missing, parent = [], path.absolute().parent
     while not (parent.exists() or parent.is_symlink()) and parent != parent.parent:
         missing.append(parent)

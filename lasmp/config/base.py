@@ -7,7 +7,7 @@ trajectories, curriculum, rewards) and `RoughStaticCfg` in `lasmp/envs/rough_sta
 commands, pushes). This module imports nothing from `lasmp.envs`: the envs import their schemas, never
 the other way round.
 
-YAML files and Hydra overrides fill these schemas (`lasmp/train_cfg.py` registers them);
+YAML files and Hydra overrides fill these schemas (`lasmp/config/train.py` registers them);
 `build_env_cfg` merges a plain dict onto a schema's defaults (unknown keys are refused by OmegaConf,
 naming the key) and `validate` checks every value range, naming the offending field. Units are in the
 field names.
@@ -23,7 +23,7 @@ from typing import Any, TypeVar
 
 from omegaconf import OmegaConf
 
-from lasmp.inputs import InputError, check_seed
+from lasmp.io.inputs import InputError, check_seed
 
 
 class ConfigError(ValueError):
@@ -89,7 +89,7 @@ def check_range(name: str, lo_hi: tuple[float, float] | list[float], bound: Boun
 
 
 def check_seed_key(name: str, value: Any) -> None:
-    """The one rule of every seed (`lasmp.inputs.check_seed`) as a ConfigError."""
+    """The one rule of every seed (`lasmp.io.inputs.check_seed`) as a ConfigError."""
     try:
         check_seed(value, name)
     except InputError as err:
@@ -353,7 +353,7 @@ def build_env_cfg(overrides: Mapping[str, Any] | None = None, *, schema: type[En
 
 
 def merge_env_cfg(overrides: Mapping[str, Any] | None = None, *, schema: type[EnvCfgT]) -> EnvCfgT:
-    """`build_env_cfg` less its validation: for `lasmp.train_cfg.to_train_cfg`, which validates the env
+    """`build_env_cfg` less its validation: for `lasmp.config.train.to_train_cfg`, which validates the env
     with the rest of the training config (once)."""
     base = OmegaConf.structured(schema)
     try:

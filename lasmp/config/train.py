@@ -19,7 +19,7 @@ from omegaconf import OmegaConf
 
 from lasmp.algo.precision import PRECISIONS
 from lasmp.algo.symmetry import supports_mirror
-from lasmp.config import (
+from lasmp.config.base import (
     Bound,
     ConfigError,
     check_bounds,
@@ -28,10 +28,7 @@ from lasmp.config import (
     check_seed_key,
     merge_env_cfg,
 )
-from lasmp.envs import registry
-from lasmp.envs.registry import env_schema
-from lasmp.modules.obs_groups import EXPLICIT_SELECTIONS
-from lasmp.train_bounds import (
+from lasmp.config.bounds import (
     ALGO_BOUNDS,
     LOSS_WEIGHT,
     MAX_LAYERS,
@@ -39,6 +36,9 @@ from lasmp.train_bounds import (
     RUNNER_BOUNDS,
     THREADS,
 )
+from lasmp.envs import registry
+from lasmp.envs.registry import env_schema
+from lasmp.modules.obs_groups import EXPLICIT_SELECTIONS
 
 ACTOR_CLASS = "lasmp.modules.policy:LasmpActor"
 CRITIC_CLASS = "rsl_rl.models:MLPModel"
@@ -213,7 +213,7 @@ class TrainCfg:
     # when env.num_envs differs from the checkpoint's (the resume is then not exact)
     resume_drop_env_state: bool = False
     # (ours) a new run from a checkpoint's weights (any form: full, policy, light), with fresh optimizers:
-    # what goes on from a committed policy when the run's full checkpoint is lost (lasmp/warm_start.py)
+    # what goes on from a committed policy when the run's full checkpoint is lost (lasmp/cli/warm_start.py)
     warm_start: str | None = None
     # the task's env config, env_schema(task). Hydra composes it from the `env` group (typed: unknown keys
     # fail naming them); a plain dict (a checkpoint's saved config) is built with the task's schema by
@@ -234,7 +234,9 @@ def register_configs() -> None:
 
 def validate_train_cfg(cfg: TrainCfg) -> None:
     if not is_dataclass(cfg.env):
-        raise ConfigError("env must be built with its task's schema (lasmp.train_cfg.to_train_cfg does it)")
+        raise ConfigError(
+            "env must be built with its task's schema (lasmp.config.train.to_train_cfg does it)"
+        )
     check_known_keys(cfg)  # a `+key=value` typo (Hydra appends it) or a misspelt attribute set in code
     check_finite_values(cfg)  # NaN passes a range check written as a comparison
     check_seed_key("seed", cfg.seed)  # one rule for every seed: -1 or 2**64 would fail deep in numpy or torch

@@ -5,8 +5,8 @@ anything is built: such a state would train on for a step or two and then fail f
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -15,13 +15,9 @@ from lasmp.algo.checkpoint import (
     CheckpointError,
     check_finite,
 )
-from lasmp.envs.trajectories.splines import PADDING
-from lasmp.rsl_compat import NORMALIZER_STD_KEY, NORMALIZER_VAR_KEY
-from lasmp.rundir import CHECKPOINT_NAME
-from lasmp.train_bounds import ITERATIONS
-
-if TYPE_CHECKING:
-    pass
+from lasmp.compat.rsl_rl import NORMALIZER_STD_KEY, NORMALIZER_VAR_KEY
+from lasmp.config.bounds import ITERATIONS
+from lasmp.io.rundir import CHECKPOINT_NAME
 
 
 def check_iteration(data: dict) -> None:
@@ -43,17 +39,18 @@ def check_iteration(data: dict) -> None:
         )
 
 
-def check_state(data: dict, consequence: str) -> None:
+def check_state(data: dict, consequence: str, padding: Mapping[str, float]) -> None:
     """Refuse a checkpoint a training cannot go on from (a resume or a warm start): its stored
     iteration (`check_iteration`), a non-finite network, an insane entry (`insane_entry`);
-    `consequence` ends the message."""
+    `consequence` ends the message. `padding`: the env's padded fields, by name, with their pad value
+    (the trajectories' `PADDING`: the caller knows the envs, this layer does not)."""
     path = data["path"]
     check_iteration(data)
     try:
         check_finite({k: data[k] for k in data if k.endswith("state_dict")}, f"checkpoint {path}")
     except FloatingPointError as err:
         raise CheckpointError(f"{err}: {consequence}") from None
-    insane = insane_entry(data)
+    insane = insane_entry(data, padding)
     if insane:
         raise CheckpointError(f"checkpoint {path}: {insane}: {consequence}")
 
@@ -126,7 +123,7 @@ SANE = {
 
 
 def _finite_but_padding(value, pad: float) -> bool:
-    """A trajectory's padded field (`PADDING`): finite but for whole trailing slots of `pad` per row
+    """A padded field (the trajectories' `PADDING`): finite but for whole trailing slots of `pad` per row
     (axis 0 rows, axis 1 slots), a row's first slot always real."""
     a = value.detach().double().numpy() if isinstance(value, torch.Tensor) else np.asarray(value, np.float64)
     if a.ndim < 2 or a.shape[1] == 0:
@@ -138,7 +135,7 @@ def _finite_but_padding(value, pad: float) -> bool:
     return bool((real | padded).all() and trailing and real[:, 0].all())
 
 
-def insane_entry(data: dict) -> str | None:
+def insane_entry(data: dict, padding: Mapping[str, float]) -> str | None:
     """The first entry of a checkpoint's training state that a training cannot continue from, in
     words (None: all sane): a non-finite number anywhere in the state a resume restores (networks,
     optimizers, the envs' running state, random and logging state), or a value outside its range
@@ -147,7 +144,7 @@ def insane_entry(data: dict) -> str | None:
     error)."""
     state = {k: data[k] for k in data if k.endswith("state_dict") or k in RESUMED_STATE}
     for name, value in _numbers(state, ""):
-        pad = PADDING.get(name.removesuffix(".data").rsplit(".", 1)[-1])
+        pad = padding.get(name.removesuffix(".data").rsplit(".", 1)[-1])
         if pad is not None:
             if not _finite_but_padding(value, pad):
                 return (

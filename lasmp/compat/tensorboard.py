@@ -3,8 +3,8 @@
 rsl_rl logs through torch's `SummaryWriter`, which writes TensorBoard's events file from a thread of
 its own (TensorBoard's `EventFileWriter`). A write there that fails (a full or read-only disk) raises
 a bare OSError, without the file's name, or one naming it in bytes; train.py names the file in its
-one-line error (`lasmp.train._named`) and keeps the thread's own traceback off the terminal
-(`lasmp.train.quiet_writer_threads`). Neither TensorBoard nor torch offers a public way to tell the
+one-line error (`lasmp.cli.train._named`) and keeps the thread's own traceback off the terminal
+(`lasmp.cli.train.quiet_writer_threads`). Neither TensorBoard nor torch offers a public way to tell the
 events file's path or the thread's error, so these read, and lasmp reads nowhere else
 (`tests/test_compat.py` greps lasmp for them):
 
@@ -15,8 +15,8 @@ events file's path or the thread's error, so these read, and lasmp reads nowhere
 - the writer thread's class, told by its module (`tensorboard....`, a private class):
   `is_writer_thread`; and TensorBoard's frames in a traceback: `raised_in_tensorboard`.
 
-rsl_rl's and Hydra's private names are read in the sibling modules `lasmp/rsl_compat.py` and
-`lasmp/hydra_compat.py`. `tests/test_tb_compat.py` exercises each function against the installed
+rsl_rl's and Hydra's private names are read in the sibling modules `lasmp/compat/rsl_rl.py` and
+`lasmp/compat/hydra.py`. `tests/test_tb_compat.py` exercises each function against the installed
 torch and TensorBoard, so that an upgrade that renames one fails there, pointing here.
 """
 

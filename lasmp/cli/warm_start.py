@@ -5,7 +5,7 @@
 
 A resume needs the run's full checkpoint (optimizers, the envs' running state), which stays on the
 machine that trained: a run whose machine was lost has only what was committed, a policy checkpoint
-(`policy_<N>.pt`) or its light form (actor only, `lasmp.light_checkpoint`). A warm start takes from it
+(`policy_<N>.pt`) or its light form (actor only, `lasmp.algo.checkpoint.light`). A warm start takes from it
 what it holds: the actor (MLP, normalizer, encoder, estimators), the critic where the file has one,
 the curriculum, the random streams, the validation curve and best score, and the iteration, so the
 estimate schedule and the curve go on where they were, and the learning rate the adaptive schedule
@@ -15,7 +15,7 @@ so; the run's config.yaml records `warm_start=`, and its resume command (after a
 resume. Measured (docs/scaling.md): restarting at algo.learning_rate instead, 13 times the schedule's
 rate at iteration 550, undid a trained policy within 25 iterations; so did a new critic (a light file).
 
-The config is the checkpoint's, with the command's keys on top, as a resume's (`lasmp.resume`): a key
+The config is the checkpoint's, with the command's keys on top, as a resume's (`lasmp.cli.resume`): a key
 a resume cannot change (task, seed, the networks) is refused the same way.
 """
 
@@ -26,10 +26,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from lasmp.algo.checkpoint import learning_rates, read_checkpoint
-from lasmp.checkpoint_sanity import check_state
-from lasmp.config import ConfigError
-from lasmp.resume import resumed_cfg
-from lasmp.train_cfg import TrainCfg
+from lasmp.algo.checkpoint.sanity import check_state
+from lasmp.cli.resume import resumed_cfg
+from lasmp.config.base import ConfigError
+from lasmp.config.train import TrainCfg
+from lasmp.envs.trajectories.splines import PADDING
 
 if TYPE_CHECKING:
     from lasmp.algo.runner import LasmpRunner
@@ -53,7 +54,7 @@ class WarmStart:
                 "exactly from its full checkpoint, warm_start starts a new run from a checkpoint's weights; give one"
             )
         data = read_checkpoint(cfg.warm_start, "cpu")
-        check_state(data, "no run can start from it")
+        check_state(data, "no run can start from it", PADDING)
         return cls(resumed_cfg(cfg, data, explicit), data)
 
     @property

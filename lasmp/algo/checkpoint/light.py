@@ -1,7 +1,7 @@
 """The light form of a policy checkpoint: what play.py and evaluate.py run, and nothing else.
 
-    python -m lasmp.light_checkpoint SRC DST [--force]       # SRC: a checkpoint or run directory
-    python -m lasmp.light_checkpoint --in-place FILE [FILE ...]   # policy_<N>.pt files, each checked
+    python -m lasmp.algo.checkpoint.light SRC DST [--force]       # SRC: a checkpoint or run directory
+    python -m lasmp.algo.checkpoint.light --in-place FILE [FILE ...]   # policy_<N>.pt files, each checked
 
 A policy checkpoint (`python -m lasmp.algo.checkpoint policy`) still holds the critic, which only
 training uses: 0.86 of its 1.83 MB. The light form keeps the actor (its MLP, normalizer, encoder and
@@ -32,8 +32,8 @@ from lasmp.algo.checkpoint import (
     is_policy_only,
     read_checkpoint,
 )
-from lasmp.atomic import OutputExistsError, claim_output
-from lasmp.inputs import InputError, check_out_file
+from lasmp.io.atomic import OutputExistsError, claim_output
+from lasmp.io.inputs import InputError, check_out_file
 
 LIGHT_KIND = "actor"  # the `kind` of a light checkpoint (a policy checkpoint is "policy")
 DROPPED = (
@@ -55,7 +55,7 @@ def light(data: dict) -> dict:
     out.update(
         critic_state_dict={},
         kind=LIGHT_KIND,
-        source=f"{data.get('source') or Path(data['path']).name}, actor only (lasmp.light_checkpoint)",
+        source=f"{data.get('source') or Path(data['path']).name}, actor only (lasmp.algo.checkpoint.light)",
     )
     check_finite(out, f"refusing to write the light form of {data['path']}")
     return out
@@ -70,7 +70,7 @@ def same_actions(a: dict, b: dict) -> bool:
 def write_light(src: str | Path, dst: str | Path, force: bool = False) -> Path:
     """The light form of `src` at `dst` (an existing `dst` only with `force`; `src` itself only through
     `convert_in_place`), read back and checked to hold `src`'s actor bit for bit. `dst` is claimed
-    before `src` is read (`lasmp.atomic.claim_output`, create-exclusive): a file already there, or one
+    before `src` is read (`lasmp.io.atomic.claim_output`, create-exclusive): a file already there, or one
     another run claimed meanwhile, is refused without `force`, and a failed run leaves no empty file."""
     src = checkpoint_file(src)
     try:

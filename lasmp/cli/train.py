@@ -1,7 +1,7 @@
 """Build the env, the runner and train: the logic behind `train.py`.
 
-Run directories (`lasmp.rundir`): a training locks its directory; a new run is refused a directory
-that holds a run. A resume (`resume=`) continues a run as `lasmp.resume` decides.
+Run directories (`lasmp.io.rundir`): a training locks its directory; a new run is refused a directory
+that holds a run. A resume (`resume=`) continues a run as `lasmp.cli.resume` decides.
 """
 
 from __future__ import annotations
@@ -23,21 +23,21 @@ from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import CheckpointError
 from lasmp.algo.runner import LasmpRunner
 from lasmp.algo.stopping import TrainingFaulted, TrainingInterrupted
-from lasmp.atomic import AtomicWriteError, atomic_open
-from lasmp.config import ConfigError
+from lasmp.cli.command_line import explicit_keys, hydra_overrides, resume_command
+from lasmp.cli.preflight import training_environment_error
+from lasmp.cli.resources import check_disk_space, check_memory
+from lasmp.cli.resume import Resume, check_run_dir
+from lasmp.cli.warm_start import WarmStart
+from lasmp.compat.rsl_rl import raised_storing_code_state
+from lasmp.compat.tensorboard import events_file, is_writer_thread, raised_in_tensorboard, writer_thread_error
+from lasmp.config.base import ConfigError
+from lasmp.config.recipe import run_label, run_slug
+from lasmp.config.train import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
 from lasmp.envs import registry
 from lasmp.envs.trajectories import TrajectoryFileError
-from lasmp.hydra_cli import explicit_keys, hydra_overrides, resume_command
-from lasmp.inputs import SEED_MAX
-from lasmp.preflight import training_environment_error
-from lasmp.recipe import run_label, run_slug
-from lasmp.resume import Resume, check_run_dir
-from lasmp.rsl_compat import raised_storing_code_state
-from lasmp.rundir import RunDirError, claim, run_checkpoints
-from lasmp.tb_compat import events_file, is_writer_thread, raised_in_tensorboard, writer_thread_error
-from lasmp.train_cfg import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
-from lasmp.train_resources import check_disk_space, check_memory
-from lasmp.warm_start import WarmStart
+from lasmp.io.atomic import AtomicWriteError, atomic_open
+from lasmp.io.inputs import SEED_MAX
+from lasmp.io.rundir import RunDirError, claim, run_checkpoints
 
 
 def seed_everything(seed: int) -> None:
@@ -90,7 +90,7 @@ def make_validator(cfg: TrainCfg, full_config: dict):
 
 
 def default_log_dir(cfg: TrainCfg) -> str:
-    """logs/<task>/<recipe>[-<policy>]/<date_time> (`lasmp.recipe.run_slug`: lasmp_plus, lasmp_paper,
+    """logs/<task>/<recipe>[-<policy>]/<date_time> (`lasmp.config.recipe.run_slug`: lasmp_plus, lasmp_paper,
     lasmp_plus-no_alignment_command; rough_static: rs), unique per job: a Hydra multirun's job adds its number
     (`-m seed=1,2,3` starts its jobs within one second), and a name already taken (two starts in the
     same second) gets the first free suffix `-2`, `-3`, ... Two processes that pick one name at the
@@ -117,7 +117,7 @@ def _multirun_job() -> int | None:
 
 
 def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
-    """Train as `cfg` says: build, resume (`lasmp.resume`), learn. `explicit`: on resume, the keys
+    """Train as `cfg` says: build, resume (`lasmp.cli.resume`), learn. `explicit`: on resume, the keys
     the command line set (None: every key of `cfg`)."""
     cfg = to_train_cfg(cfg)
     # a resume or a warm start, checked whole: it fails before anything is built

@@ -1,6 +1,6 @@
 """A checkpoint's training config, rebuilt as today's TrainCfg: what play, evaluation and the
 benchmarks build a policy and an env from (`checkpoint_cfg`), and what a resume runs, with the
-command's keys on top (`lasmp.resume`). It lives above `lasmp.algo`, which knows checkpoints but not
+command's keys on top (`lasmp.cli.resume`). It lives above `lasmp.algo`, which knows checkpoints but not
 the training config."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from contextlib import contextmanager
 from omegaconf import OmegaConf
 
 from lasmp.algo.checkpoint import CheckpointError
-from lasmp.train_cfg import TrainCfg, to_train_cfg
+from lasmp.config.train import TrainCfg, to_train_cfg
 
 
 def checkpoint_cfg(

@@ -4,7 +4,7 @@ and its cgroup's (v2 `memory.max`, v1 `memory.limit_in_bytes`, at every level of
 
 Why all of them: a container or a `ulimit` makes an allocation fail long before the machine's memory
 runs out; a check that read only /proc/meminfo let 60,000 envs past a 3 GB limit, to fail inside
-MuJoCo. Training (`lasmp.train_resources`) and the trajectory generator check against it before any
+MuJoCo. Training (`lasmp.cli.resources`) and the trajectory generator check against it before any
 allocation. The cgroup and proc paths are arguments so that tests can give mocked files."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import os
 import resource
 from pathlib import Path
 
-from lasmp.inputs import size_in_words
+from lasmp.io.inputs import size_in_words
 
 CGROUP_ROOT = Path("/sys/fs/cgroup")
 PROC_SELF = Path("/proc/self")

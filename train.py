@@ -17,7 +17,7 @@ exit_unless_mujoco_imports()  # a bad MUJOCO_GL: one line, not the traceback of 
 
 import hydra  # noqa: E402
 
-from lasmp.cli.command_line import Sweep, unknown_key_error  # noqa: E402
+from lasmp.cli.command_line import hydra_overrides, run  # noqa: E402
 from lasmp.config.train import register_configs  # noqa: E402
 
 CONFIG_PATH, CONFIG_NAME = "cfg", "config"
@@ -25,27 +25,21 @@ CONFIG_PATH, CONFIG_NAME = "cfg", "config"
 register_configs()
 
 
-SWEEP: Sweep | None = None  # with -m: the sweep's jobs and how each ended (lasmp/cli/command_line.py)
+def job(cfg, overrides: list[str]) -> int:
+    from lasmp.cli.train import main as train_main
+
+    return train_main(cfg, overrides)
 
 
 @hydra.main(version_base="1.3", config_path=CONFIG_PATH, config_name=CONFIG_NAME)
-def main(cfg) -> None:
-    from lasmp.cli.train import main as train_main
-
-    if SWEEP is not None:  # a failed job is said, and the sweep goes on (docs/usage.md)
-        SWEEP.run_job(lambda: train_main(cfg))
-        return
-    code = train_main(cfg)
+def hydra_app(cfg) -> None:
+    """Hydra's own app, for what lasmp leaves to it (`lasmp.cli.command_line.HYDRA_OWN`: --help,
+    --info, another config; a sweep only its sweeper can expand)."""
+    code = job(cfg, hydra_overrides())
     if code:
         raise SystemExit(code)
 
 
 if __name__ == "__main__":
-    error = unknown_key_error(sys.argv[1:], Path(__file__).resolve().parent / CONFIG_PATH, CONFIG_NAME)
-    if error:
-        print(f"error: {error}", file=sys.stderr)
-        sys.exit(2)
-    SWEEP = Sweep.of(sys.argv[1:])
-    main()
-    if SWEEP is not None:
-        sys.exit(SWEEP.report())
+    config_dir = Path(__file__).resolve().parent / CONFIG_PATH
+    sys.exit(run(sys.argv[1:], config_dir, CONFIG_NAME, job, hydra_app))

@@ -1,58 +1,165 @@
-"""train.py's command line, composed once before Hydra's app composes it, for the one failure
-Hydra words against us: an override naming no config key. Hydra's message suggests appending it
-with `+`, which the README rules out and validation would refuse anyway
-(`lasmp.config.base.check_known_keys`); ours names the key and the keys valid where it points. A key
-that a recipe (cfg/recipe/) sets and the env lacks is worded as the recipe's: the recipes are the
-moving platform's. A sweep (`-m`) is checked job by job, as Hydra's basic sweeper expands it.
+"""train.py's command line, read once: its arguments parsed with `hydra.main`'s own parser, each job's
+config composed once with Hydra's compose API, and the job run (`run`). Hydra's app (`hydra_app`) is
+left what lasmp does not do itself: `--help`, `--hydra-help`, `--info`, another config directory or
+name, and a sweep its basic sweeper alone can expand (a glob, an interval).
 
-`Sweep` keeps a sweep's jobs going past one that fails (docs/usage.md): a failed job is said when it
-ends and again, with every other failed job, when the sweep ends; an interrupted job stops the sweep,
-naming the jobs that did not run."""
+Why lasmp composes: an override naming no config key is the one failure Hydra words against us (it
+suggests appending the key with `+`, which the README rules out and validation would refuse anyway,
+`lasmp.config.base.check_known_keys`); ours names the key and the keys valid where it points. A key
+that a recipe (cfg/recipe/) sets and the env lacks is worded as the recipe's: the recipes are the
+moving platform's. A sweep (`-m`) is composed job by job, as Hydra's basic sweeper expands it, every
+job before the first runs, so that a typo in any job is refused before any work.
+
+Below: the keys a command line sets (what a resume takes from it) and the command that resumes a run.
+"""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import re
 import shlex
 import sys
-import traceback
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lasmp.cli.sweep import Sweep
 from lasmp.compat.hydra import args_parser, basic_sweep_jobs
 from lasmp.config.base import flatten
 
 if TYPE_CHECKING:
     from hydra.plugins.config_source import ConfigResult
+    from omegaconf import DictConfig
+
+# hydra.main's options that lasmp leaves to Hydra's app: its help and information, another config
+HYDRA_OWN = (
+    "help",
+    "hydra_help",
+    "info",
+    "shell_completion",
+    "config_path",
+    "config_dir",
+    "config_name",
+    "experimental_rerun",
+)
 
 
-def _compose(config_dir: Path, config_name: str, overrides: list[str]):
+@dataclass(frozen=True)
+class CommandLine:
+    """train.py's arguments, parsed once: `args` as `hydra.main` reads them, and `jobs`, each job's
+    overrides (one job without -m; a sweep's, in the order Hydra's basic sweeper numbers them; None:
+    a sweep lasmp cannot expand)."""
+
+    args: argparse.Namespace
+    jobs: list[list[str]] | None
+
+    @classmethod
+    def parse(cls, argv: list[str]) -> CommandLine:
+        args = args_parser().parse_args(argv)
+        return cls(args, sweep_jobs(args.overrides) if args.multirun else [list(args.overrides)])
+
+    @property
+    def for_hydra(self) -> bool:
+        """Whether Hydra's app, not lasmp, runs this command line (`HYDRA_OWN`, or a sweep lasmp cannot expand)."""
+        return self.jobs is None or any(getattr(self.args, name) for name in HYDRA_OWN)
+
+
+def run(
+    argv: list[str],
+    config_dir: Path,
+    config_name: str,
+    job: Callable[[DictConfig, list[str]], int],
+    hydra_app: Callable[[], None],
+) -> int:
+    """train.py: parse `argv` once, compose each job's config once (refusing an unknown key in any job
+    before the first runs, exit 2), then run each job (`job(cfg, overrides)`: its exit code), or
+    print its config (`--cfg job|hydra|all`, `--package`, `--resolve`); the exit code. A sweep goes
+    on past a failed job (`Sweep`). What lasmp leaves to Hydra goes to `hydra_app`."""
+    line = CommandLine.parse(argv)
+    if line.for_hydra:
+        hydra_app()
+        return 0
+    multirun = bool(line.args.multirun)
+    composed = []
+    for num, overrides in enumerate(line.jobs):
+        cfg, error = compose_job(config_dir, config_name, overrides, num if multirun else None)
+        if error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        composed.append((cfg, overrides))
+    if line.args.cfg:
+        for cfg, _ in composed:
+            print(_shown(cfg, line.args.cfg, line.args.package, line.args.resolve), end="")
+        return 0
+    sweep = Sweep(line.jobs) if multirun else None
+    for num, (cfg, overrides) in enumerate(composed):
+        _set_hydra_config(cfg)
+        if sweep is None:
+            return job(_job_config(cfg), overrides)
+        sweep.run_job(num, lambda cfg=cfg, overrides=overrides: job(_job_config(cfg), overrides))
+    return sweep.report() if sweep is not None else 0
+
+
+def compose_job(
+    config_dir: Path, config_name: str, overrides: list[str], num: int | None = None
+) -> tuple[DictConfig | None, str | None]:
+    """One job's config with Hydra's own node (`hydra.*`, for `HydraConfig`: the job's overrides and,
+    in a sweep, its number `num`), or the one-line error that refuses it."""
+    from hydra.types import RunMode
+    from omegaconf import open_dict
+
+    try:
+        cfg = _compose(config_dir, config_name, overrides, hydra_node=True)
+    except Exception as err:
+        return None, _unknown_key(err, overrides, config_dir, config_name) or _one_line(err)
+    with open_dict(cfg):
+        cfg.hydra.mode = RunMode.MULTIRUN if num is not None else RunMode.RUN
+        cfg.hydra.job.num = num or 0
+    return cfg, None
+
+
+def _one_line(err: Exception) -> str:
+    """Hydra's composition error as one line: its message (the options it lists), not its search path."""
+    return " ".join(str(err).split("Config search path")[0].split())
+
+
+def _set_hydra_config(cfg) -> None:
+    """Make the job's Hydra node what `HydraConfig.get()` reads (as `hydra.main` does for its job)."""
+    from hydra.core.hydra_config import HydraConfig
+
+    HydraConfig.instance().set_config(cfg)
+
+
+def _job_config(cfg):
+    """The job's config without Hydra's node: what the training reads."""
+    from omegaconf import OmegaConf
+
+    return OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+
+
+def _shown(cfg, which: str, package: str | None, resolve: bool) -> str:
+    """`--cfg job|hydra|all` as Hydra prints it: the job's config, Hydra's node, or both, as YAML."""
+    from omegaconf import OmegaConf
+
+    node = (
+        _job_config(cfg)
+        if which == "job"
+        else OmegaConf.masked_copy(cfg, "hydra")
+        if which == "hydra"
+        else cfg
+    )
+    if package:
+        node = OmegaConf.select(node, package)
+    return OmegaConf.to_yaml(node, resolve=resolve) if OmegaConf.is_config(node) else f"{node}\n"
+
+
+def _compose(config_dir: Path, config_name: str, overrides: list[str], hydra_node: bool = False):
     from hydra import compose, initialize_config_dir
 
-    with initialize_config_dir(config_dir=str(config_dir), version_base="1.3"):
-        return compose(config_name, overrides=overrides)
-
-
-def unknown_key_error(argv: list[str], config_dir: Path, config_name: str) -> str | None:
-    """The one-line error for the override in `argv` (train.py's arguments) that names no key of
-    the config `config_name` in `config_dir`, or None. With `-m`, each job of the sweep is checked
-    (a sweep's comma lists do not compose as one config). Every other failure is left to Hydra's app,
-    which reports it as it always has."""
-    args = _parse_args(argv)
-    if args.config_path or args.config_dir or args.config_name:  # another config than the one checked here
-        return None
-    if not args.multirun:
-        return _unknown_key(args.overrides, config_dir, config_name)
-    for job in sweep_jobs(args.overrides) or []:
-        error = _unknown_key(job, config_dir, config_name)
-        if error:
-            return error
-    return None
-
-
-def _parse_args(argv: list[str]):
-    return args_parser().parse_args(argv)  # hydra.main's own: the overrides it will compose
+    with initialize_config_dir(config_dir=str(config_dir), version_base="1.3", job_name="train"):
+        return compose(config_name, overrides=overrides, return_hydra_config=hydra_node)
 
 
 def sweep_jobs(overrides: list[str]) -> list[list[str]] | None:
@@ -65,24 +172,22 @@ def sweep_jobs(overrides: list[str]) -> list[list[str]] | None:
         return None
 
 
-def _unknown_key(overrides: list[str], config_dir: Path, config_name: str) -> str | None:
+def _unknown_key(err: Exception, overrides: list[str], config_dir: Path, config_name: str) -> str | None:
+    """The one-line error for a composition that failed on an override naming no config key (or a
+    recipe's key the env lacks), with the keys valid where it points; None for any other failure."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from omegaconf import OmegaConf
     from omegaconf.errors import ConfigAttributeError, ConfigKeyError
 
-    try:
-        _compose(config_dir, config_name, overrides)
+    recipe = re.match(r"In 'recipe/(\w+)': ConfigKeyError.*full_key: (\S+)", str(err), re.DOTALL)
+    if recipe:
+        return (
+            f"recipe={recipe[1]} sets '{recipe[2]}', a key this command's env has not: the recipes "
+            "are the moving platform's (task=moving_platform, env=moving_platform); other tasks take none"
+        )
+    if not isinstance(err.__cause__, (ConfigAttributeError, ConfigKeyError)):
         return None
-    except Exception as err:  # only the unknown key is ours to word; Hydra reports the rest
-        recipe = re.match(r"In 'recipe/(\w+)': ConfigKeyError.*full_key: (\S+)", str(err), re.DOTALL)
-        if recipe:
-            return (
-                f"recipe={recipe[1]} sets '{recipe[2]}', a key this command's env has not: the recipes "
-                "are the moving platform's (task=moving_platform, env=moving_platform); other tasks take none"
-            )
-        if not isinstance(err.__cause__, (ConfigAttributeError, ConfigKeyError)):
-            return None
-        key = err.__cause__.full_key  # the first level that does not exist
+    key = err.__cause__.full_key  # the first level that does not exist
     parent = key.rpartition(".")[0]
     message = f"unknown config key '{key}'"
     # the keys at its level: in the config the other overrides compose (a group choice such as
@@ -94,85 +199,10 @@ def _unknown_key(overrides: list[str], config_dir: Path, config_name: str) -> st
     ]
     try:
         cfg = _compose(config_dir, config_name, others)
-    except Exception:  # another override fails too: Hydra's app reports it once this one is fixed
+    except Exception:  # another override fails too: said once this one is fixed
         return message
     node = OmegaConf.select(cfg, parent) if parent else cfg
     return f"{message}; valid keys{f' of {parent}' if parent else ''}: {sorted(node)}"
-
-
-class Sweep:
-    """A sweep's (`train.py -m ...`) jobs and how each ended. A job that fails (bad input, exit 2; a
-    run that could not go on, exit 1; an unexpected exception, its traceback and exit 1) is said when it
-    ends, and the sweep goes on with the next job; `report` then lists every failed job. A job stopped
-    by Ctrl-C or SIGTERM (exit 128 + the signal) stops the sweep, naming the jobs that did not run."""
-
-    def __init__(self, jobs: list[list[str]] | None):
-        self.jobs = jobs  # None: not expanded here (the labels are then the job numbers alone)
-        self.failed: dict[int, int] = {}  # job number -> exit code
-        self.ran = 0
-
-    @classmethod
-    def of(cls, argv: list[str]) -> Sweep | None:
-        """The sweep `argv` (train.py's arguments) asks for; None without -m."""
-        args = _parse_args(argv)
-        return cls(sweep_jobs(args.overrides)) if args.multirun else None
-
-    def label(self, num: int) -> str:
-        """Job #num with the overrides that tell it from the sweep's other jobs."""
-        if not self.jobs or num >= len(self.jobs):
-            return f"#{num}"
-        own = self.jobs[num]
-        varying = [o for o in own if not all(o in job for job in self.jobs)] or own
-        return f"#{num} ({' '.join(varying)})"
-
-    def run_job(self, job: Callable[[], int]) -> None:
-        """Run one job (in Hydra's task function) and keep its exit code; SystemExit if it was interrupted."""
-        from hydra.core.hydra_config import HydraConfig
-
-        num = HydraConfig.get().job.num
-        try:
-            code = job()
-        except Exception:  # a bug, not a user's mistake: its traceback, and the other jobs still run
-            traceback.print_exc()
-            code = 1
-        self.ran += 1
-        if code >= 128:  # Ctrl-C or SIGTERM: the user wants the sweep to stop, not to skip one job
-            rest = self.jobs[num + 1 :] if self.jobs is not None else None
-            if rest is None:
-                not_run = f"the jobs after #{num} did not run"
-            elif rest:
-                not_run = f"did not run: {', '.join(self.label(n) for n in range(num + 1, len(self.jobs)))}"
-            else:
-                not_run = "it was the last job"
-            failed = f"; failed before: {self._listed()}" if self.failed else ""
-            print(
-                f"the sweep stopped at job {self.label(num)}: {not_run}{failed}", file=sys.stderr, flush=True
-            )
-            raise SystemExit(code)
-        if code:
-            self.failed[num] = code
-            print(
-                f"sweep: job {self.label(num)} failed (exit {code}); going on with the next job",
-                file=sys.stderr,
-                flush=True,
-            )
-
-    def _listed(self) -> str:
-        return ", ".join(f"{self.label(n)} exit {code}" for n, code in self.failed.items())
-
-    def report(self) -> int:
-        """After the sweep: the failed jobs in one line (their own errors were said as each ended); the
-        exit code, the first failed job's (0 if none failed)."""
-        if not self.failed:
-            return 0
-        total = len(self.jobs) if self.jobs is not None else self.ran
-        print(
-            f"error: {len(self.failed)} of {total} jobs of the sweep failed: {self._listed()} (each job's error "
-            "is above); the other jobs ran to their end",
-            file=sys.stderr,
-            flush=True,
-        )
-        return next(iter(self.failed.values()))
 
 
 # -- what a command line sets, and the command that continues a run -------------------------------

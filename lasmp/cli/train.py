@@ -12,7 +12,6 @@ import datetime
 import os
 import shlex
 import shutil
-import sys
 import threading
 from pathlib import Path
 
@@ -23,7 +22,8 @@ from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import CheckpointError
 from lasmp.algo.runner import LasmpRunner
 from lasmp.algo.stopping import TrainingFaulted, TrainingInterrupted
-from lasmp.cli.command_line import explicit_keys, hydra_overrides, resume_command
+from lasmp.cli.command_line import explicit_keys, resume_command
+from lasmp.cli.errors import ErrorTable, run
 from lasmp.cli.preflight import training_environment_error
 from lasmp.cli.resources import check_disk_space, check_memory
 from lasmp.cli.resume import Resume, check_run_dir
@@ -280,38 +280,26 @@ def _remove_failed_start(log_dir: Path, there_before: set[str]) -> None:
                 shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
 
 
-# what a user can meet: bad input (exit 2) and a run that cannot go on (exit 1), each said in one line
-BAD_INPUT = (CheckpointError, ConfigError, RunDirError, TrajectoryFileError)
-CANNOT_GO_ON = (TrainingFaulted, FloatingPointError, OSError, RankLost)
+# what a user can meet, each said in one line (`lasmp.cli.errors`)
+ERRORS = ErrorTable(
+    bad_input=(CheckpointError, ConfigError, RunDirError, TrajectoryFileError),
+    cannot_go_on=(TrainingFaulted, FloatingPointError, OSError, RankLost),
+    stopped=(TrainingInterrupted,),  # its checkpoint and the resume command are said
+    interrupted="interrupted before training started: nothing saved",  # later, the runner saves and says so
+)
 
 
 def main(cfg, overrides: list[str] | None = None) -> int:
-    """train.py: train `cfg`, composed by Hydra from `overrides` (None: Hydra's own, when it runs);
-    return the exit code. Failures a user can meet print one line, no traceback."""
-    try:
-        if overrides is None:
-            overrides = hydra_overrides()
-        resuming = (
-            getattr(cfg, "resume", None) or getattr(cfg, "warm_start", None)
-        ) and overrides is not None
-        explicit = explicit_keys(overrides) if resuming else None
+    """Train `cfg`, composed from `overrides` (the command line's, `lasmp.cli.command_line`); return the
+    exit code (`ERRORS`). A resume or warm start takes the keys `overrides` set on top of its checkpoint's."""
+
+    def work() -> None:
+        starting_from = getattr(cfg, "resume", None) or getattr(cfg, "warm_start", None)
+        explicit = explicit_keys(overrides) if starting_from and overrides is not None else None
         with quiet_writer_threads():
             train(cfg, explicit)
-    except TrainingInterrupted as stop:  # checkpoint written and resume command printed
-        return 128 + stop.signum
-    except BAD_INPUT as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    except CANNOT_GO_ON as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:  # Ctrl-C before training started (the runner handles it during training)
-        print("interrupted before training started: nothing saved", file=sys.stderr)
-        return 130
-    finally:
-        with contextlib.suppress(Exception):  # after a lost rank: never replace the error said above
-            dp.teardown()
-    return 0
+
+    return run(work, ERRORS, on_exit=dp.teardown)  # after a lost rank the teardown may fail: said never
 
 
 @contextlib.contextmanager

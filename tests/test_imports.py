@@ -16,6 +16,7 @@ GROUPS = ("lasmp.cli", "lasmp.config", "lasmp.io", "lasmp.compat")
 LAYERS = (
     ("lasmp.cli.train", "lasmp.cli.play"),
     ("lasmp.cli.command_line",),
+    ("lasmp.cli.sweep",),
     ("lasmp.cli.warm_start",),
     ("lasmp.cli.resume", "lasmp.cli.resources"),
     ("lasmp.eval", "lasmp.render"),
@@ -27,7 +28,7 @@ LAYERS = (
     ("lasmp.modules",),
     ("lasmp.config.bounds",),
     ("lasmp.robots", "lasmp.config.base", "lasmp.io.plainstate", "lasmp.io.rundir", "lasmp.io.memory"),
-    ("lasmp.io.atomic", "lasmp.io.inputs", "lasmp.io.ctrl_c", "lasmp.cli.preflight"),
+    ("lasmp.io.atomic", "lasmp.io.inputs", "lasmp.io.ctrl_c", "lasmp.cli.preflight", "lasmp.io.errors"),
     ("lasmp.compat.rsl_rl", "lasmp.compat.tensorboard", "lasmp.compat.hydra"),
     GROUPS,
 )

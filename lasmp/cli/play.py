@@ -27,16 +27,15 @@ A write that fails is one line naming the file (exit 1); a Ctrl-C says what was 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
 import shutil
-import sys
 from pathlib import Path
 
 import torch
 
-from lasmp.algo.checkpoint import CheckpointError
-from lasmp.config.base import ConfigError
 from lasmp.deploy import load_deploy_env
-from lasmp.envs.trajectories import TrajectoryFileError
+from lasmp.io.errors import ErrorTable, bad_input_from, run
 from lasmp.io.inputs import InputError, int_arg, seed_arg
 from lasmp.modules.export import deploy_metadata
 from lasmp.render.outputs import EXPORT_FILES, Outputs, check_outputs, claim_outputs, export_into
@@ -246,38 +245,53 @@ def use_benchmark_episodes(env, path: str, first: int) -> None:
     env.reset()
 
 
+# what a user can meet, each said in one line (`lasmp.io.errors`). Bad input (2) is said before the
+# rollout: a file this run cannot write (`check_files`), a checkpoint, trajectory file, scenario or
+# benchmark episode it cannot play (`play`), a renderer it cannot have; a write that fails once the
+# run has begun (AtomicWriteError: a full disk, ...) names its file (1). A Ctrl-C says what was and
+# was not written (130: `main`).
+ERRORS = ErrorTable(bad_input=(InputError, RenderError), cannot_go_on=(OSError,))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     refuse_conflicts(parser, args)
-    if args.viewer and not has_display():
-        print(
-            "error: --viewer needs a display (DISPLAY or WAYLAND_DISPLAY is unset); use --video or --snapshots "
-            "to render offscreen",
-            file=sys.stderr,
-        )
-        return 2
-    try:  # every file this run writes, checked before the env is built
+    checked: list[Outputs] = []  # this run's files, once checked: what it wrote, said when it ends early
+
+    def work() -> int:
+        if args.viewer and not has_display():
+            raise InputError(
+                "--viewer needs a display (DISPLAY or WAYLAND_DISPLAY is unset); use --video or --snapshots "
+                "to render offscreen"
+            )
+        outputs, claims = check_files(args)
+        checked.append(outputs)
+        with claims:  # an unwritten claim is removed when the run ends, however it ends
+            return play(args, outputs)
+
+    def interrupted() -> str:
+        return (checked[0] if checked else Outputs([])).interrupted()
+
+    def remove_new_empty_dirs() -> None:  # a failed or interrupted run leaves no directory it made empty
+        for outputs in checked:
+            outputs.remove_new_empty_dirs()
+
+    return run(work, dataclasses.replace(ERRORS, interrupted=interrupted), on_exit=remove_new_empty_dirs)
+
+
+def check_files(args) -> tuple[Outputs, contextlib.ExitStack]:
+    """Every file this run writes, checked and claimed before the env is built, with what writing
+    them needs (ffmpeg for the video, offscreen OpenGL): (what the run has written, the claims). A
+    file it cannot write is bad input here (a file there without --force, a read-only directory),
+    not a failed write."""
+    with bad_input_from(OSError):
         outputs = Outputs(check_outputs(args))
         if args.video:
             ffmpeg_exe()
         if args.video or args.snapshots:
             check_offscreen_gl()
-        claims = claim_outputs(args)  # last: the checks above leave nothing behind
-    except (InputError, RenderError, OSError) as err:  # OSError: a file there without --force, ...
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    try:
-        with claims:  # an unwritten claim is removed when the run ends, however it ends
-            return play(args, outputs)
-    except KeyboardInterrupt:
-        outputs.remove_new_empty_dirs()
-        print(outputs.interrupted(), file=sys.stderr)
-        return 130
-    except OSError as err:  # a write that failed (AtomicWriteError: a full disk, ...); it names the file
-        outputs.remove_new_empty_dirs()
-        print(f"error: {err}", file=sys.stderr)
-        return 1
+        return outputs, claim_outputs(args)  # last: the checks above leave nothing behind
 
 
 def evaluation_episodes(task: str) -> dict:
@@ -287,8 +301,10 @@ def evaluation_episodes(task: str) -> dict:
 
 
 def play(args, outputs: Outputs) -> int:
-    """main's work once its options and files are checked: load, export, roll out, write."""
-    try:
+    """main's work once its options and files are checked: load, export, roll out, write. A value
+    the load refuses (the checkpoint, the trajectory file, the scenario, the benchmark episode) is
+    bad input, as is one the export refuses; `ERRORS` says the rest."""
+    with bad_input_from(ValueError):  # CheckpointError, ConfigError, TrajectoryFileError, ...
         trajectories, overrides = args.trajectories, evaluation_episodes
         if args.scenario:
             trajectories, overrides = scenario_file(args.scenario)
@@ -305,19 +321,14 @@ def play(args, outputs: Outputs) -> int:
             steps = env.max_episode_length - 1 if args.scenario else 500
         if args.benchmark_episode is not None:
             use_benchmark_episodes(env, args.benchmark or DEFAULT_BENCHMARK, args.benchmark_episode)
-    except (CheckpointError, TrajectoryFileError, ConfigError, ValueError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
     # a run directory means its newest checkpoint: say which file that was
     print(f"loaded {data['path']} (iteration {data['iter']}, task {cfg.task})", flush=True)
 
     if args.export:
-        try:
+        # a policy the export cannot take (the R-S baseline's command input); a failed write is not that
+        with bad_input_from(ValueError, prefix="--export: "):
             metadata = deploy_metadata(policy, cfg, data["iter"], Path(data["path"]).name)
             path, sidecar = files = export_into(policy, Path(args.out), metadata)
-        except ValueError as err:  # a policy the export cannot take (the R-S baseline's command input)
-            print(f"error: --export: {err}", file=sys.stderr)
-            return 2
         outputs.written += files
         print(f"exported {args.export} policy to {path} (metadata in {sidecar})", flush=True)
 
@@ -342,9 +353,6 @@ def play(args, outputs: Outputs) -> int:
             outputs.written.append(Path(args.video))
         if strip:
             shots = strip.frames(renderer)
-    except RenderError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
     finally:
         if video and Path(args.video) not in outputs.written:
             writer.abort()  # a failed or interrupted run: no partial video

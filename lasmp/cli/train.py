@@ -23,7 +23,6 @@ from lasmp.algo.checkpoint import CheckpointError
 from lasmp.algo.runner import LasmpRunner
 from lasmp.algo.stopping import TrainingFaulted, TrainingInterrupted
 from lasmp.cli.command_line import explicit_keys, resume_command
-from lasmp.cli.errors import ErrorTable, run
 from lasmp.cli.preflight import training_environment_error
 from lasmp.cli.resources import check_disk_space, check_memory
 from lasmp.cli.resume import Resume, check_run_dir
@@ -36,6 +35,7 @@ from lasmp.config.train import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
 from lasmp.envs import registry
 from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.io.atomic import AtomicWriteError, atomic_open
+from lasmp.io.errors import ErrorTable, run
 from lasmp.io.inputs import SEED_MAX
 from lasmp.io.rundir import RunDirError, claim, run_checkpoints
 
@@ -280,7 +280,7 @@ def _remove_failed_start(log_dir: Path, there_before: set[str]) -> None:
                 shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
 
 
-# what a user can meet, each said in one line (`lasmp.cli.errors`)
+# what a user can meet, each said in one line (`lasmp.io.errors`)
 ERRORS = ErrorTable(
     bad_input=(CheckpointError, ConfigError, RunDirError, TrajectoryFileError),
     cannot_go_on=(TrainingFaulted, FloatingPointError, OSError, RankLost),

@@ -55,16 +55,6 @@ def rate_by(values: np.ndarray, collided: np.ndarray, groups) -> list[tuple[str,
     return [(label, int(mask.sum()), int(collided[mask].sum())) for label, mask in groups]
 
 
-def bins(values: np.ndarray, edges, fmt: str) -> list[tuple[str, np.ndarray]]:
-    """[(label, mask)] for bins [e_i, e_{i+1}), the last one open-ended; NaN falls in none."""
-    out = []
-    for i, lo in enumerate(edges):
-        hi = edges[i + 1] if i + 1 < len(edges) else np.inf
-        label = f"[{lo:{fmt}}, {hi:{fmt}})" if np.isfinite(hi) else f">= {lo:{fmt}}"
-        out.append((label, (values >= lo) & (values < hi)))
-    return out
-
-
 def primary_cause(cause: str) -> str:
     """The kind of the first thing that touched: trunk, hip, thigh, calf, or the fall / fault."""
     first = cause.split("+")[0]
@@ -107,15 +97,19 @@ def breakdown(t: dict[str, np.ndarray], late_s: float = 8.0) -> dict:
         "episodes": len(collided),
         "collisions": int(collided.sum()),
         "by_n": rate_by(t["n_waypoints"], collided, [(str(n), t["n_waypoints"] == n) for n in n_values]),
-        "by_friction": rate_by(t["foot_friction"], collided, bins(t["foot_friction"], FRICTION_BINS, ".1f")),
-        "by_com_y": rate_by(None, collided, bins(np.abs(t["com_shift_y_m"]), COM_Y_ABS_BINS_M, ".2f")),
-        "by_com_z": rate_by(None, collided, bins(t["com_shift_z_m"], COM_Z_BINS_M, ".2f")),
+        "by_friction": rate_by(
+            t["foot_friction"], collided, failure.bins(t["foot_friction"], FRICTION_BINS, ".1f")
+        ),
+        "by_com_y": rate_by(
+            None, collided, failure.bins(np.abs(t["com_shift_y_m"]), COM_Y_ABS_BINS_M, ".2f")
+        ),
+        "by_com_z": rate_by(None, collided, failure.bins(t["com_shift_z_m"], COM_Z_BINS_M, ".2f")),
     }
     probed = np.isfinite(t["forced"])
     out["probed"] = int(probed.sum())
     if probed.any():
         tilt = t["platform_tilt_max_rad"]
-        out["by_tilt"] = rate_by(tilt, collided, bins(tilt, TILT_BINS_RAD, ".1f"))
+        out["by_tilt"] = rate_by(tilt, collided, failure.bins(tilt, TILT_BINS_RAD, ".1f"))
         forced = probed & (t["forced"] > 0.5)
         out["by_forced"] = rate_by(None, collided, [("forced", forced), ("not forced", probed & ~forced)])
         out["forced"] = int(forced.sum())

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 from pathlib import Path
 
 import torch
@@ -59,6 +58,7 @@ from lasmp.eval.mirror import MirroredBenchmark, mirror_report
 from lasmp.eval.paper import paper_key, paper_row
 from lasmp.eval.report import markdown, plot_estimates
 from lasmp.eval.run import run_benchmark
+from lasmp.io import errors
 from lasmp.io.inputs import int_arg, seed_arg
 
 NUM_BATCHES = 10
@@ -147,16 +147,17 @@ def main(argv=None, motions=None) -> int:
     if args.controller != "stand_still" and not args.checkpoint:
         p.error("give --checkpoint PATH (a LAS-MP policy, or an R-S policy with --controller rs|rs_oracle)")
     claimed: list[od.ResultDir] = []
-    try:
-        if args.suite:
-            return run_suite(args, p, motions, claimed)
-        return run_xi(args, p, motions, claimed)
-    except KeyboardInterrupt:
-        print(od.interrupted(claimed[0] if claimed else None), file=sys.stderr)
-        return 130
+    evaluation = run_suite if args.suite else run_xi
+    table = dataclasses.replace(ERRORS, interrupted=lambda: od.interrupted(claimed[0] if claimed else None))
+    return errors.run(lambda: evaluation(args, p, motions, claimed), table)
 
 
+# what a user can meet, each said in one line (`lasmp.io.errors`): an output, a benchmark, a
+# trajectory file or a checkpoint it cannot use (2), said before any episode is played; a result it
+# cannot write is said by `od.publish` (1), after the metrics it could not save. A Ctrl-C says what
+# was written (130: `main`).
 INPUT_ERRORS = (CheckpointError, od.OutDirError, bm.BenchmarkFileError, trj.TrajectoryFileError)
+ERRORS = errors.ErrorTable(bad_input=INPUT_ERRORS)
 
 
 def run_xi(args, p, motions, claimed: list) -> int:
@@ -172,33 +173,24 @@ def run_xi(args, p, motions, claimed: list) -> int:
             p.error(f"{flag} needs --suite")
     if args.plot_estimates and args.controller is not None:
         p.error("--plot-estimates needs --checkpoint (a policy with estimators)")
-    try:
-        # the output before the benchmark, the policy and the physics: a refusal costs seconds
-        out = od.claim_out(args, Path("eval"), claimed)
-    except INPUT_ERRORS as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    with out:
-        try:
-            bench = load_or_make_benchmark(args.benchmark)
-            if args.trajectories is not None:
-                bench = dataclasses.replace(bench, trajectories=trj.load(args.trajectories))
-            total = len(bench.trajectories)
-            if args.num_trajectories is None:
-                args.num_trajectories = total
-            if not 1 <= args.num_trajectories <= total:
-                p.error(f"--num-trajectories must be in [1, {total}], got {args.num_trajectories}")
-            if args.mirror is not None and args.mirror > args.num_trajectories:
-                p.error(
-                    f"--mirror must be in [1, {args.num_trajectories}] (the episodes played), got {args.mirror}"
-                )
-            out.check_space(args.num_trajectories + (args.mirror or 0))
-            checkpoint = od.checkpoint_file(args.checkpoint)
-            env, controller, policy, method = build(args, checkpoint=checkpoint)
-            inputs = od.provenance(args, checkpoint, args.benchmark)
-        except INPUT_ERRORS as err:
-            print(f"error: {err}", file=sys.stderr)
-            return 2
+    # the output before the benchmark, the policy and the physics: a refusal costs seconds
+    with od.claim_out(args, Path("eval"), claimed) as out:
+        bench = load_or_make_benchmark(args.benchmark)
+        if args.trajectories is not None:
+            bench = dataclasses.replace(bench, trajectories=trj.load(args.trajectories))
+        total = len(bench.trajectories)
+        if args.num_trajectories is None:
+            args.num_trajectories = total
+        if not 1 <= args.num_trajectories <= total:
+            p.error(f"--num-trajectories must be in [1, {total}], got {args.num_trajectories}")
+        if args.mirror is not None and args.mirror > args.num_trajectories:
+            p.error(
+                f"--mirror must be in [1, {args.num_trajectories}] (the episodes played), got {args.mirror}"
+            )
+        out.check_space(args.num_trajectories + (args.mirror or 0))
+        checkpoint = od.checkpoint_file(args.checkpoint)
+        env, controller, policy, method = build(args, checkpoint=checkpoint)
+        inputs = od.provenance(args, checkpoint, args.benchmark)
         return evaluate_xi(args, out, bench, env, controller, policy, method, inputs)
 
 
@@ -273,15 +265,12 @@ def run_suite(args, p, motions, claimed: list) -> int:
     robots = rm.DEFAULT_ROBOTS_PER_SCENARIO if args.robots_per_scenario is None else args.robots_per_scenario
     if motions is not None and args.scenarios:
         p.error("give --scenarios or motions, not both")
-    try:
+    with errors.bad_input_from(ValueError):  # an unknown scenario
         if motions is None:
             names = rm.scenario_names(args.scenarios)  # checked before anything is made
         out = od.claim_out(args, Path("eval") / rm.SUITE_NAME, claimed)
-    except (*INPUT_ERRORS, ValueError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
     with out:
-        try:
+        with errors.bad_input_from(ValueError):  # a motion, benchmark or checkpoint the suite cannot play
             if motions is None:
                 motions = rm.build_motions(names)
             names = [m.name for m in motions]
@@ -294,9 +283,6 @@ def run_suite(args, p, motions, claimed: list) -> int:
             checkpoint = od.checkpoint_file(args.checkpoint)
             env, controller, policy, method = build(args, extra, checkpoint)
             inputs = od.provenance(args, checkpoint, args.benchmark)
-        except (*INPUT_ERRORS, ValueError) as err:
-            print(f"error: {err}", file=sys.stderr)
-            return 2
         tracking = rm.platform_tracking(episodes, eval_env_overrides(len(names), args.seed, extra))
         run = run_benchmark(env, controller, episodes, episodes.num_episodes, policy=policy)
         per_episode = run["episodes"]

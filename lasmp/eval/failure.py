@@ -43,14 +43,18 @@ def failure_state(
     }
 
 
-def _tilt_bins(values: np.ndarray) -> list[tuple[str, int]]:
-    edges = AT_FAILURE_TILT_BINS_RAD
+def bins(values: np.ndarray, edges, fmt: str) -> list[tuple[str, np.ndarray]]:
+    """[(label, mask)] for bins [e_i, e_{i+1}), the last one open-ended; NaN falls in none."""
     out = []
     for i, lo in enumerate(edges):
         hi = edges[i + 1] if i + 1 < len(edges) else np.inf
-        label = f"[{lo:.1f}, {hi:.1f})" if np.isfinite(hi) else f">= {lo:.1f}"
-        out.append((label, int(((values >= lo) & (values < hi)).sum())))
+        label = f"[{lo:{fmt}}, {hi:{fmt}})" if np.isfinite(hi) else f">= {lo:{fmt}}"
+        out.append((label, (values >= lo) & (values < hi)))
     return out
+
+
+def _tilt_bins(values: np.ndarray) -> list[tuple[str, int]]:
+    return [(label, int(mask.sum())) for label, mask in bins(values, AT_FAILURE_TILT_BINS_RAD, ".1f")]
 
 
 def state_tables(t: dict[str, np.ndarray]) -> dict | None:

@@ -15,6 +15,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lasmp"
 GROUPS = ("lasmp.cli", "lasmp.config", "lasmp.io", "lasmp.compat")
 LAYERS = (
     ("lasmp.cli.train", "lasmp.cli.play"),
+    ("lasmp.cli.train_failures", "lasmp.cli.run_directory"),
     ("lasmp.cli.command_line",),
     ("lasmp.cli.sweep",),
     ("lasmp.cli.warm_start",),

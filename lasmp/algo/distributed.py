@@ -8,7 +8,7 @@ gradients (`PPOROA.update_roa`), one shared curriculum (`SharedCurriculum`), eve
 running state in rank 0's checkpoints, and one stop iteration for a signal sent to any rank.
 A rank that loses the others (one killed or crashed: gloo's "Connection closed by peer") ends with
 one message naming the run's newest checkpoint and the command that resumes from it
-(`lasmp.cli.train.RankLost`), not with the collective's traceback.
+(`lasmp.cli.train_failures.RankLost`), not with the collective's traceback.
 
 Backends: NCCL for a learner on CUDA (`device=cuda` means each rank's `cuda:LOCAL_RANK`), gloo on a
 CPU. rsl_rl's own setup hard-codes NCCL and CUDA; `LasmpRunner` replaces it with `setup`.

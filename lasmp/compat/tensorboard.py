@@ -3,8 +3,8 @@
 rsl_rl logs through torch's `SummaryWriter`, which writes TensorBoard's events file from a thread of
 its own (TensorBoard's `EventFileWriter`). A write there that fails (a full or read-only disk) raises
 a bare OSError, without the file's name, or one naming it in bytes; train.py names the file in its
-one-line error (`lasmp.cli.train._named`) and keeps the thread's own traceback off the terminal
-(`lasmp.cli.train.quiet_writer_threads`). Neither TensorBoard nor torch offers a public way to tell the
+one-line error (`lasmp.cli.train_failures.named`) and keeps the thread's own traceback off the terminal
+(`lasmp.cli.train_failures.quiet_writer_threads`). Neither TensorBoard nor torch offers a public way to tell the
 events file's path or the thread's error, so these read, and lasmp reads nowhere else
 (`tests/test_compat.py` greps lasmp for them):
 

@@ -156,7 +156,7 @@ def test_a_default_run_directory_already_taken_in_the_same_second_gets_a_suffix(
     the first's directory (it would be refused as one that holds a run)."""
     import datetime as real
 
-    import lasmp.cli.train as lt
+    import lasmp.cli.run_directory as lt
     from lasmp.config.train import TrainCfg
 
     class Frozen(real.datetime):

@@ -25,16 +25,15 @@ from lasmp.algo.checkpoint import (
     read_checkpoint,
     refuse_policy_only,
 )
+from lasmp.algo.checkpoint.sanity import check_state
+from lasmp.config.base import flatten
 from lasmp.config.checkpoint import rebuilding
 from lasmp.config.train import TrainCfg, to_plain, to_train_cfg
+from lasmp.envs.trajectories.splines import PADDING
 from lasmp.io.rundir import RunDirError, describe, run_checkpoints, run_files
 
 if TYPE_CHECKING:
     from lasmp.algo.runner import LasmpRunner
-
-from lasmp.algo.checkpoint.sanity import check_state
-from lasmp.config.base import flatten
-from lasmp.envs.trajectories.splines import PADDING
 
 # keys a resume takes from the command, never from the checkpoint's config
 FROM_COMMAND = ("resume", "resume_drop_env_state", "warm_start", "runner.log_dir")

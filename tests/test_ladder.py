@@ -3,6 +3,7 @@ and a command line that refuses what it cannot use."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 import subprocess
@@ -80,6 +81,15 @@ def test_the_table_gives_each_seeds_final_score_their_mean_spread_and_the_differ
     )
 
 
+def test_the_table_times_each_seed_to_its_first_validation_at_each_target(ladder, tmp_path):
+    _curve(tmp_path / "base" / "seed10", [0.5, 0.04, 0.06, 0.02])  # 0.05 at its 2nd point, 0.029 at its 4th
+    _curve(tmp_path / "base" / "seed11", [0.5, 0.3, 0.06, 0.05])  # 0.05 exactly at its 4th; 0.029 never
+    (row,) = ladder.table_rows(ladder.curves(tmp_path))
+    assert row["first_reaching"]["0.05"] == {"10": (2_000_000, 2.0), "11": (4_000_000, 4.0)}
+    assert row["first_reaching"]["0.029"] == {"10": (4_000_000, 4.0), "11": None}
+    assert "| 2.0 (2) / 4.0 (4) | 4.0 (4) / never |" in ladder.markdown([row])
+
+
 def test_the_figure_draws_every_collected_rung(ladder, tmp_path):
     _curve(tmp_path / "base" / "seed10", [0.5, 0.2, 0.1])
     _curve(tmp_path / "steps48" / "seed10", [0.4, 0.2, 0.1])
@@ -118,7 +128,7 @@ def test_help_says_what_the_ladder_is():
 
 
 def test_a_running_run_leaves_its_newest_policy_light_with_its_commands_and_an_unfinished_one_is_not_collected(
-    tmp_path,
+    tmp_path, monkeypatch
 ):
     from testkit import tiny
 
@@ -148,7 +158,9 @@ def test_a_running_run_leaves_its_newest_policy_light_with_its_commands_and_an_u
     with pytest.raises(SystemExit, match="has not finished its 1800 iterations"):
         ladder.collect("base", 10)
     # a rung of two iterations at 4 envs: the run has finished it
-    ladder.RUNGS["base"], ladder.SAMPLES = ladder.Rung("4 envs", "baseline", num_envs=4), 4 * 12 * 2
+    monkeypatch.setitem(
+        ladder.RUNGS, "base", ladder.Rung("4 envs", "baseline", num_envs=4, samples=4 * 12 * 2)
+    )
     out = ladder.collect("base", 10)
     assert sorted(p.name for p in out.iterdir()) == [  # the snapshot gone: the finished run replaces it
         "commands",
@@ -163,16 +175,14 @@ def test_a_running_run_leaves_its_newest_policy_light_with_its_commands_and_an_u
         ladder.collect("base", 10)
 
 
-def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_saved(tmp_path):
+def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_saved(tmp_path, monkeypatch):
     from testkit import TINY_CLI
 
     ladder = load_script("scripts/ladder.py")
     ladder.RUNS, ladder.RESULTS = tmp_path / "runs", tmp_path / "results"
     tiny = (*TINY_CLI, "runner.validation_episodes=2")
-    ladder.RUNGS["base"], ladder.SAMPLES = (
-        ladder.Rung("4 envs", "baseline", num_envs=4, overrides=tiny),
-        4 * 12 * 2,
-    )
+    tiny_rung = ladder.Rung("4 envs", "baseline", num_envs=4, overrides=tiny, samples=4 * 12 * 2)
+    monkeypatch.setitem(ladder.RUNGS, "base", tiny_rung)
     assert ladder.train("base", 10) == 0
     lines = (tmp_path / "runs" / "base" / "seed10.commands").read_text().splitlines()
     assert len(lines) == 2 and lines[0].startswith("# ") and "cores" in lines[0]
@@ -184,7 +194,7 @@ def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_
     # the machine is lost after a snapshot: the run goes on from the snapshot's policy, a warm start
     ladder.snapshot("base", 10)
     shutil.rmtree(tmp_path / "runs")
-    ladder.SAMPLES = 4 * 12 * 4
+    monkeypatch.setitem(ladder.RUNGS, "base", dataclasses.replace(tiny_rung, samples=4 * 12 * 4))
     assert ladder.train("base", 10) == 0
     lines = (tmp_path / "runs" / "base" / "seed10.commands").read_text().splitlines()
     assert len(lines) == 4 and "runner.max_iterations=2" in lines[3]
@@ -194,6 +204,7 @@ def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_
     # the validation curve goes on from the snapshot's
     assert [r["iteration"] for r in ladder.read_curve(run / "validation.json")["history"]] == [0, 1, 2, 3]
     # a rung whose training fails before its first save records nothing
-    ladder.RUNGS["steps24"] = ladder.Rung("bad", "(b) rollout", num_envs=4, overrides=("env.bogus_key=1",))
+    bad = ladder.Rung("bad", "(b) rollout", num_envs=4, overrides=("env.bogus_key=1",))
+    monkeypatch.setitem(ladder.RUNGS, "steps24", bad)
     assert ladder.train("steps24", 10) != 0
     assert not (tmp_path / "runs" / "steps24" / "seed10.commands").exists()

@@ -148,8 +148,12 @@ def read_robot(sim, ix: RobotIndex, rows: torch.Tensor | None = None) -> RobotRe
 
 
 def as_numpy(r: AnyReadout) -> AnyReadout:
-    """The same readout with host numpy arrays (for evaluation code that works on the host)."""
-    return dataclasses.replace(r, **{name: value.detach().cpu().numpy() for name, value in vars(r).items()})
+    """The same readout as host numpy copies (for evaluation code that works on the host). Copies, not
+    views: the env resets an ended episode's rows of its readout in place at the end of the step, so a
+    view taken at the step (`on_step`) would read the reset state, not the state the episode ended in."""
+    return dataclasses.replace(
+        r, **{name: value.detach().cpu().numpy().copy() for name, value in vars(r).items()}
+    )
 
 
 def update_rows(target, rows: torch.Tensor, sub) -> None:

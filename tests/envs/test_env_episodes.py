@@ -67,6 +67,23 @@ def test_body_contact_terminates_and_is_not_a_time_out():
     assert rew[1] < 0  # the collision penalty dominates
 
 
+def test_the_readout_seen_at_an_ending_step_stays_the_ended_episodes_state_after_the_reset():
+    """Evaluation records the state an episode ended in from `on_step` (the trunk's height and tilt,
+    the feet down); the env then resets that row of its readout in place, so the host copy must not
+    follow it: it was a view, and every failure read as the reset's level, feet-up start."""
+    env = make(2, domain_rand={"enabled": False})
+    static_platform(env)
+    env.reset()
+    seen = {}
+    env.on_step = lambda readout, collision: seen.update(r=as_numpy(readout))
+    env.sim.qpos[1, env.index.root_qpos + 2] = env.plf_top_m + 0.05  # env 1's trunk on the deck
+    env.sim.forward()
+    _, _, done, _ = env.step(torch.zeros(2, 12))
+    assert done.tolist() == [False, True]
+    ended, restarted = seen["r"].p_body_p[1, 2], float(env.readout.p_body_p[1, 2])
+    assert restarted - ended > 0.15, (ended, restarted)  # the trunk down on the deck, up at the restart
+
+
 def test_falling_off_the_platform_terminates():
     env = make(2, domain_rand={"enabled": False})
     static_platform(env)

@@ -71,26 +71,45 @@ def snapshot_policy(name: str, seed: int) -> tuple[Path, int] | None:
     return (found[-1][1], found[-1][0]) if found else None
 
 
+def _continued(rung: Rung, seed: int) -> tuple[Path, int, Path]:
+    """The finished run that `rung` goes on from (`Rung.continues`): its last full checkpoint, that
+    checkpoint's iteration and the run's commands file; refused while that run has not finished."""
+    before = _rung(rung.continues)
+    run_dir = RUNS / rung.continues / f"seed{seed}"
+    last = _last_saved(ROOT / run_dir)
+    if last is None or last + 1 < before.iterations:
+        raise SystemExit(
+            f"error: this rung goes on from {run_dir}, which has not finished its {before.iterations} "
+            f"iterations here (last save: {last}): train {rung.continues} {seed} first"
+        )
+    return run_dir / f"model_{last}.pt", last, ROOT / run_dir.parent / f"seed{seed}.commands"
+
+
 def train(name: str, seed: int) -> int:
     """Train (or resume) one run. Its command goes into runs/ladder/<rung>/seed<k>.commands, with the
     time and the machine, once the training has saved a checkpoint (so that a snapshot of a run still
     training carries it), never for a run that failed before its first save. A run with no checkpoint
     here but a committed snapshot (its machine was lost) goes on from the snapshot's policy, a warm
-    start (lasmp/cli/warm_start.py), after the snapshot's commands."""
+    start (lasmp/cli/warm_start.py), after the snapshot's commands. A rung that continues another
+    (`Rung.continues`) starts as a resume of that run's last checkpoint, after that run's commands."""
     rung = _rung(name)
     run_dir = RUNS / name / f"seed{seed}"
     last = _last_saved(ROOT / run_dir)
     snap = snapshot_policy(name, seed) if last is None else None
-    done = last + 1 if last is not None else snap[1] + 1 if snap else 0
+    branch = _continued(rung, seed) if last is None and not snap and rung.continues else None
+    done = last + 1 if last is not None else snap[1] + 1 if snap else branch[1] + 1 if branch else 0
     if done >= rung.iterations:
         print(f"{run_dir}: done ({rung.iterations} iterations)")
         return 0
     warm = Path(os.path.relpath(snap[0], ROOT)) if snap else None
     cmd = rung.command(seed, run_dir, rung.iterations - done, resume=last is not None, warm_start=warm)
+    if branch:  # a resume of the other run's checkpoint, into this run's own directory
+        cmd.append(f"resume={branch[0]}")
     commands = ROOT / RUNS / name / f"seed{seed}.commands"
-    if snap and not commands.exists():  # the run's history so far, then the warm start's command
+    history = snap[0].parent / "commands" if snap else branch[2] if branch else None
+    if history and not commands.exists():  # the run's history so far, then this command
         commands.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(snap[0].parent / "commands", commands)
+        shutil.copyfile(history, commands)
     print(" ".join(cmd), flush=True)
     stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     recorded = False
@@ -181,11 +200,14 @@ def plan() -> None:
             last = _last_saved(ROOT / RUNS / name / f"seed{seed}")
             collected = (RESULTS / name / f"seed{seed}" / "validation.json").exists()
             snap = snapshot_policy(name, seed) if last is None else None
+            before = rung.continues if last is None and not snap else None
             state = (
                 "collected"
                 if collected
                 else f"snapshot {snap[1] + 1}/{rung.iterations} iterations"
                 if snap
+                else f"after {before}'s {RUNGS[before].iterations}/{rung.iterations} iterations"
+                if before
                 else f"{0 if last is None else last + 1}/{rung.iterations} iterations"
             )
             print(f"{name:>13} seed {seed}: {state:>22} | python scripts/ladder.py train {name} {seed}")

@@ -43,6 +43,8 @@ def _curve(path: Path, collisions: list[float], steps_per_point: int = 1_000_000
 
 def test_the_batch_and_rollout_rungs_train_on_equal_samples_validated_about_as_often_and_at_their_end(ladder):
     for name, rung in ladder.RUNGS.items():
+        if rung.continues:  # a length rung: past the others' budget
+            continue
         samples = rung.iterations * rung.num_envs * rung.steps_per_env
         assert samples == ladder.SAMPLES, name  # 22.1 M env-steps each
         assert rung.iterations % rung.validation_interval == 0, name  # the last iteration is scored
@@ -208,3 +210,34 @@ def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_
     monkeypatch.setitem(ladder.RUNGS, "steps24", bad)
     assert ladder.train("steps24", 10) != 0
     assert not (tmp_path / "runs" / "steps24" / "seed10.commands").exists()
+
+
+def test_a_length_rung_goes_on_from_its_finished_run_in_its_own_directory_after_that_runs_commands(
+    tmp_path, monkeypatch
+):
+    from testkit import TINY_CLI
+
+    ladder = load_script("scripts/ladder.py")
+    ladder.RUNS, ladder.RESULTS = tmp_path / "runs", tmp_path / "results"
+    tiny = (*TINY_CLI, "runner.validation_episodes=2")
+    short = ladder.Rung("4 envs", "(a) batch", num_envs=4, overrides=tiny, samples=4 * 12 * 2)
+    longer = dataclasses.replace(short, samples=4 * 12 * 4, continues="envs8192")
+    monkeypatch.setitem(ladder.RUNGS, "envs8192", short)
+    monkeypatch.setitem(ladder.RUNGS, "long8192", longer)
+    with pytest.raises(SystemExit, match="has not finished its 2 iterations here"):
+        ladder.train("long8192", 10)
+    assert ladder.train("envs8192", 10) == 0
+    assert ladder.train("long8192", 10) == 0
+    run = tmp_path / "runs" / "long8192" / "seed10"
+    assert sorted(p.name for p in run.glob("model_*.pt")) == ["model_2.pt", "model_3.pt"]
+    # the curve goes on from the first run's: one curve over the 4 iterations
+    assert [r["iteration"] for r in ladder.read_curve(run / "validation.json")["history"]] == [0, 1, 2, 3]
+    lines = (run.parent / "seed10.commands").read_text().splitlines()
+    assert len(lines) == 4 and "runner.max_iterations=2" in lines[3]
+    assert lines[3].endswith(f"resume={tmp_path / 'runs' / 'envs8192' / 'seed10' / 'model_1.pt'}")
+    assert ladder.train("long8192", 10) == 0  # done
+    # the first run is left as it was
+    assert sorted(p.name for p in (tmp_path / "runs" / "envs8192" / "seed10").glob("model_*.pt")) == [
+        "model_0.pt",
+        "model_1.pt",
+    ]

@@ -27,6 +27,9 @@ class Rung:
     steps_per_env: int = STEPS_PER_ENV
     overrides: tuple[str, ...] = field(default=())
     samples: int = SAMPLES  # env-steps the run trains
+    # the rung whose finished run (same seed) this one goes on from, in its own directory: a resume of
+    # that run's last full checkpoint, optimizer, curriculum and validation curve included
+    continues: str | None = None
 
     @property
     def iterations(self) -> int:
@@ -74,5 +77,14 @@ RUNGS = {
     # paper's 1.0)
     "level2": Rung(
         "trunk-level weight 2 (ours)", "(e) reward", overrides=("env.rewards.weights.task3_level=2.0",)
+    ),
+    # the paper's batch at a quarter of its samples (8,192 envs x 1,000 iterations, 98 M env-steps): the
+    # 8,192-env rung's run goes on past its 225 iterations
+    "long8192": Rung(
+        "8,192 envs x 1,000 iterations",
+        "(d) length",
+        num_envs=8_192,
+        samples=8_192 * STEPS_PER_ENV * 1_000,
+        continues="envs8192",
     ),
 }

@@ -26,7 +26,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from ladderlib.report import curves, figure, markdown, read_curve, table_rows  # noqa: F401  (tests read them here)
-from ladderlib.rungs import BASE, RESULTS, ROOT, RUNGS, RUNS, SAMPLES, SEEDS, Rung  # noqa: F401
+from ladderlib.rungs import BASE, CHOSEN, RESULTS, ROOT, ROW_SEEDS, RUNGS, RUNS, SAMPLES, SEEDS, Rung  # noqa: F401
 
 
 def _rung(name: str) -> Rung:
@@ -37,9 +37,17 @@ def _rung(name: str) -> Rung:
 
 def _seed(text: str) -> int:
     seed = int(text)
-    if seed not in SEEDS:
-        raise argparse.ArgumentTypeError(f"the ladder's seeds are {', '.join(map(str, SEEDS))}, got {seed}")
+    known = sorted({s for rung in RUNGS.values() for s in rung.seeds})
+    if seed not in known:
+        raise argparse.ArgumentTypeError(f"the ladder's seeds are {', '.join(map(str, known))}, got {seed}")
     return seed
+
+
+def _rung_seed(name: str, seed: int) -> Rung:
+    rung = _rung(name)
+    if seed not in rung.seeds:
+        raise SystemExit(f"error: rung {name} trains seeds {', '.join(map(str, rung.seeds))}, not {seed}")
+    return rung
 
 
 def _last_saved(run_dir: Path) -> int | None:
@@ -92,7 +100,7 @@ def train(name: str, seed: int) -> int:
     here but a committed snapshot (its machine was lost) goes on from the snapshot's policy, a warm
     start (lasmp/cli/warm_start.py), after the snapshot's commands. A rung that continues another
     (`Rung.continues`) starts as a resume of that run's last checkpoint, after that run's commands."""
-    rung = _rung(name)
+    rung = _rung_seed(name, seed)
     run_dir = RUNS / name / f"seed{seed}"
     last = _last_saved(ROOT / run_dir)
     snap = snapshot_policy(name, seed) if last is None else None
@@ -151,7 +159,7 @@ def collect(name: str, seed: int, force: bool = False) -> Path:
     """results/ladder/<rung>/seed<k>/: the run's validation.json, config.yaml, commands and its best
     policy by validation in the light form (under 1 MB: a run adds no more to the tree). The final
     policy's figures are validation.json's last entry; the policy itself stays in the run directory."""
-    rung = _rung(name)
+    rung = _rung_seed(name, seed)
     run_dir = ROOT / RUNS / name / f"seed{seed}"
     last = _last_saved(run_dir)
     if last is None or last + 1 < rung.iterations:
@@ -176,7 +184,7 @@ def snapshot(name: str, seed: int) -> Path:
     kept, 1.8 MB), its curve so far and its commands, to commit at the end of a sitting (a lost machine
     then costs the hours since, not the run: `train` goes on from these weights with fresh optimizers,
     a warm start)."""
-    _rung(name)
+    _rung_seed(name, seed)
     run_dir = ROOT / RUNS / name / f"seed{seed}"
     last = _last_saved(run_dir)
     if last is None:
@@ -196,7 +204,7 @@ def snapshot(name: str, seed: int) -> Path:
 
 def plan() -> None:
     for name, rung in RUNGS.items():
-        for seed in SEEDS:
+        for seed in rung.seeds:
             last = _last_saved(ROOT / RUNS / name / f"seed{seed}")
             collected = (RESULTS / name / f"seed{seed}" / "validation.json").exists()
             snap = snapshot_policy(name, seed) if last is None else None

@@ -10,6 +10,7 @@
                                                       # --paper: the paper's Table II rows below ours
     python scripts/study.py table --headline          # the README's: ours with the paper's row beside it
     python scripts/study.py ordering                  # each ablation against its full method, by the intervals
+    python scripts/study.py paired                    # the new rows seed by seed: LAS-MP+ minus the paper's recipe
     python scripts/study.py tables                    # rewrite both tables (with --paper) in README.md, docs/results.md
 
 Runs live in runs/study/<method>/seed<k>/ (not committed: checkpoints); each command line is
@@ -28,7 +29,10 @@ and its four ablations under its recipe, at one budget chosen from LAS-MP+'s lea
 (docs/screening.md); each of these runs is also played with the mirror twins of Xi_eval's first
 1,024 episodes (results/study/<method>/seed<k>/mirror/). Last, LAS-MP+ once more on seeds 3, 4 and 5,
 which no screening run saw (its seeds 0 and 1 are the runs that chose it): a row of its own, free of
-that choice.
+that choice. Then the new rows: LAS-MP+ at the recipe and budget chosen on the validation benchmark,
+and the paper's recipe at the same budget, on seeds 20-22, which the ladder trains
+(`scripts/ladder.py train rows_plus|rows_paper SEED`, then `collect`); the study plays each run's best
+checkpoint by validation on all of Xi_eval and with the mirror twins (results/study/rows_*/seed<k>/).
 
 Every run trains with the bfloat16 learner (`algo.precision=bfloat16`: bfloat16 autocast, fused Adam,
 compiled MLPs) (ours): `auto` chooses by the CPU, and the study's machines differ, so one learner for
@@ -51,9 +55,9 @@ from __future__ import annotations
 import argparse
 
 from studylib import plan
-from studylib.plan import FRESH_SEEDS, METHODS, SEEDS, is_done, steps, summary_args
+from studylib.plan import FRESH_SEEDS, METHODS, ROW_SEEDS, SEEDS, is_done, steps, summary_args
 from studylib.runs import evaluate, train
-from studylib.tables import compare, headline, ordering, table, write_tables
+from studylib.tables import compare, headline, ordering, paired, table, write_tables
 
 from lasmp.io.inputs import InputError, int_arg
 
@@ -75,6 +79,7 @@ def main(argv=None) -> None:
         "--headline", action="store_true", help="the README's table: ours with the paper's beside it"
     )
     sub.add_parser("ordering", help="each ablation against its full method, by the intervals")
+    sub.add_parser("paired", help="the new rows seed by seed: LAS-MP+ minus the paper's recipe")
     sub.add_parser("tables", help="rewrite README.md's and docs/results.md's tables from summary.json")
     sub.add_parser("summary").add_argument(
         "--paper-columns", action="store_true", help="print only the paper's five metrics"
@@ -82,7 +87,7 @@ def main(argv=None) -> None:
     for name in ("train", "evaluate"):
         s = sub.add_parser(name)
         s.add_argument("method", choices=sorted(METHODS))
-        s.add_argument("seed", type=int, choices=SEEDS + FRESH_SEEDS)
+        s.add_argument("seed", type=int, choices=SEEDS + FRESH_SEEDS + ROW_SEEDS)
         s.add_argument(
             "--until" if name == "train" else "--at",
             dest="n",
@@ -118,6 +123,8 @@ def run_step(args: argparse.Namespace) -> None:
         print(headline() if args.headline else table(wide=args.wide, paper=args.paper))
     elif args.cmd == "ordering":
         print(ordering())
+    elif args.cmd == "paired":
+        print(paired())
     elif args.cmd == "tables":
         write_tables()
     elif args.cmd == "summary":

@@ -77,6 +77,7 @@ def study(tmp_path, monkeypatch):
     monkeypatch.setattr(mod.plan, "RESULTS", tmp_path / "results" / "study")
     monkeypatch.setattr(mod.plan, "FIRST_PASS", tmp_path / "results" / "study" / "entropy_0.01")
     monkeypatch.setattr(mod.plan, "STAND_STILL", tmp_path / "results" / "study" / "stand_still" / "seed0")
+    monkeypatch.setattr(mod.plan, "LADDER", tmp_path / "results" / "ladder")
     ran = []
     mod.real_execute = mod.execute
     monkeypatch.setattr(mod.runs, "execute", lambda cmd, log: ran.append(cmd[1:]))

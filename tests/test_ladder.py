@@ -43,7 +43,7 @@ def _curve(path: Path, collisions: list[float], steps_per_point: int = 1_000_000
 
 def test_the_batch_and_rollout_rungs_train_on_equal_samples_validated_about_as_often_and_at_their_end(ladder):
     for name, rung in ladder.RUNGS.items():
-        if rung.continues:  # a length rung: past the others' budget
+        if rung.continues or rung.seeds != ladder.SEEDS:  # a length rung; the new rows
             continue
         samples = rung.iterations * rung.num_envs * rung.steps_per_env
         assert samples == ladder.SAMPLES, name  # 22.1 M env-steps each
@@ -111,7 +111,7 @@ def test_a_truncated_curve_is_one_line_naming_its_file(ladder, tmp_path):
     "args, message",
     [
         (["plan", "--bogus"], "unrecognized arguments: --bogus"),
-        (["train", "base", "3"], "the ladder's seeds are 10, 11, got 3"),
+        (["train", "base", "3"], "the ladder's seeds are 10, 11, 20, 21, 22, got 3"),
         (["train", "nope", "10"], "invalid choice: 'nope'"),
     ],
 )
@@ -241,3 +241,14 @@ def test_a_length_rung_goes_on_from_its_finished_run_in_its_own_directory_after_
         "model_0.pt",
         "model_1.pt",
     ]
+
+
+def test_the_new_rows_train_the_chosen_rung_and_the_papers_recipe_on_their_own_seeds_only(ladder):
+    plus, paper = ladder.RUNGS["rows_plus"], ladder.RUNGS["rows_paper"]
+    assert plus.seeds == paper.seeds == ladder.ROW_SEEDS and not set(ladder.ROW_SEEDS) & set(ladder.SEEDS)
+    assert plus.overrides == ladder.RUNGS[ladder.CHOSEN].overrides and plus.iterations == paper.iterations
+    assert "recipe=paper" in paper.command(20, Path("r"), 5, False)
+    with pytest.raises(SystemExit, match="rung rows_plus trains seeds 20, 21, 22, not 10"):
+        ladder.train("rows_plus", 10)
+    with pytest.raises(SystemExit, match="rung base trains seeds 10, 11, not 20"):
+        ladder.collect("base", 20)

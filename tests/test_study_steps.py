@@ -198,3 +198,33 @@ def test_a_saved_iteration_is_its_full_checkpoint_or_the_policy_checkpoint_keep_
     assert study.saved_at(run, 449) == run / "policy_449.pt"
     (run / "model_449.pt").write_bytes(b"")
     assert study.saved_at(run, 449) == run / "model_449.pt"
+
+
+def test_the_new_rows_are_the_ladders_runs_played_at_their_best_checkpoint_by_validation_with_mirror_twins(
+    study,
+):
+    assert [(k, m, s) for k, m, s, _ in study.steps()][-6:] == [
+        ("evaluate", m, s) for s in (20, 21, 22) for m in ("rows_plus", "rows_paper")
+    ]
+    assert study.ROW_METHODS["rows_paper"] == ["recipe=paper"]
+    with pytest.raises(
+        SystemExit, match="the ladder trains the new rows: python scripts/ladder.py train rows_plus 20"
+    ):
+        study.train("rows_plus", 20)
+    with pytest.raises(SystemExit, match="scripts/ladder.py train rows_paper 21, then collect it"):
+        study.evaluate("rows_paper", 21)
+    best = study.plan.LADDER / "rows_paper" / "seed21" / "policy_best.pt"  # what the ladder collects
+    best.parent.mkdir(parents=True)
+    best.write_bytes(b"")
+    study.evaluate("rows_paper", 21)
+    full, mirror = study.ran
+    assert full[full.index("--checkpoint") + 1] == "results/ladder/rows_paper/seed21/policy_best.pt"
+    assert full[full.index("--out") + 1] == "results/study/rows_paper/seed21" and "--mirror" not in full
+    assert mirror[mirror.index("--out") + 1] == "results/study/rows_paper/seed21/mirror"
+    evaluated(study.result_dir("rows_paper", 21, study.ROW_BUDGET))
+    evaluated(study.result_dir("rows_paper", 21, study.ROW_BUDGET) / "mirror")
+    assert study.is_done("evaluate", "rows_paper", 21, 1800)
+    args = study.summary_args()
+    assert args[args.index("LAS-MP (paper's recipe), 1,800 it., seeds 20-22") + 1] == (
+        "results/study/rows_paper/seed21"
+    )

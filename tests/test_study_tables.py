@@ -240,3 +240,31 @@ def test_compare_names_the_missing_run(study):
     evaluated(study.result_dir("lasmp_float32", 0, 450))  # a current-pass directory is not the first pass's
     with pytest.raises(SystemExit, match="entropy_0.01/lasmp_float32/seed0/curves_450.json does not exist"):
         study.compare()
+
+
+def test_the_new_rows_compare_seed_by_seed_with_the_mean_difference_and_its_interval(study):
+    plus, paper = study.ROW_NAMES
+    methods = {
+        plus: _entry(study, [f"results/study/rows_plus/seed{k}" for k in (20, 21, 22)], [0.03, 0.05, 0.04]),
+        # the paper's row in another seed order, one seed short of LAS-MP+'s at first
+        paper: _entry(
+            study, ["results/study/rows_paper/seed21", "results/study/rows_paper/seed20"], [0.08, 0.06]
+        ),
+    }
+    path = study.RESULTS / "summary.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"methods": methods}))
+    rows = study.paired(path).splitlines()
+    assert rows[0].startswith("| seed | collision rate: LAS-MP+ − paper |") and len(rows) == 2 + 2 + 1
+    assert rows[2].startswith("| 20 | -0.030 |") and rows[3].startswith("| 21 | -0.030 |")
+    assert rows[4].startswith("| mean ± 95 % | -0.030 ± 0.000 |")  # two equal differences: no spread
+    methods[paper] = _entry(
+        study, [f"results/study/rows_paper/seed{k}" for k in (21, 20, 22)], [0.08, 0.06, 0.09]
+    )
+    path.write_text(json.dumps({"methods": methods}))
+    last = study.paired(path).splitlines()[-1]
+    # -0.03, -0.03, -0.05: mean -0.0367, sd 0.0115, t(0.975, 2) = 4.303 -> half-width 0.0287
+    assert last.startswith("| mean ± 95 % | -0.037 ± 0.029 |")
+    del methods[paper]
+    path.write_text(json.dumps({"methods": methods}))
+    assert study.paired(path) == "the new rows: not both evaluated yet"

@@ -11,6 +11,7 @@ ROOT = Path(__file__).resolve().parents[2]
 RUNS = Path("runs") / "ladder"  # the training directories (not committed)
 RESULTS = ROOT / "results" / "ladder"  # what each finished run leaves in the tree
 SEEDS = (10, 11)
+ROW_SEEDS = (20, 21, 22)  # the new rows' (rows_plus, rows_paper): no run before them used these
 BASE = "base"
 STEPS_PER_ENV = 12  # the default rollout, runner.num_steps_per_env
 SAMPLES = 1_024 * STEPS_PER_ENV * 1_800  # 22.1 M env-steps: every rung of (a) and (b) at equal samples
@@ -30,6 +31,7 @@ class Rung:
     # the rung whose finished run (same seed) this one goes on from, in its own directory: a resume of
     # that run's last full checkpoint, optimizer, curriculum and validation curve included
     continues: str | None = None
+    seeds: tuple[int, ...] = SEEDS
 
     @property
     def iterations(self) -> int:
@@ -88,3 +90,11 @@ RUNGS = {
         continues="envs8192",
     ),
 }
+# the new rows (docs/results.md#the-new-rows-chosen-on-validation-played-on-xi_eval): LAS-MP+ at the rung that the ladder chose on the
+# validation benchmark (CHOSEN), and the paper's recipe at the same budget, on seeds of their own; the
+# study plays each run's best checkpoint by validation on all of Xi_eval (scripts/study.py evaluate)
+CHOSEN = BASE
+RUNGS["rows_plus"] = Rung(
+    f"LAS-MP+ at the chosen rung ({CHOSEN})", "(f) rows", overrides=RUNGS[CHOSEN].overrides, seeds=ROW_SEEDS
+)
+RUNGS["rows_paper"] = Rung("the paper's recipe", "(f) rows", overrides=("recipe=paper",), seeds=ROW_SEEDS)

@@ -10,6 +10,9 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from ladderlib.rungs import RESULTS as LADDER_RESULTS
+from ladderlib.rungs import ROW_SEEDS, RUNGS
+
 ROOT = Path(__file__).resolve().parents[2]
 RUNS = ROOT / "runs" / "study"
 RESULTS = ROOT / "results" / "study"
@@ -41,7 +44,18 @@ PAPER_METHODS = {
     "rs": ["task=rough_static"],  # the rough-terrain task takes no recipe
 }
 PLUS_METHODS = {"lasmp_plus": [PLUS], **{f"plus_{a}": [PLUS, f"policy={a}"] for a in ABLATIONS}}
-METHODS = PAPER_METHODS | PLUS_METHODS
+# the new rows (docs/results.md#the-new-rows-chosen-on-validation-played-on-xi_eval): LAS-MP+ at the recipe and budget chosen on the validation
+# benchmark, and the paper's recipe at the same budget, on seeds that no run before them used. The
+# ladder trains them (scripts/ladder.py train rows_plus|rows_paper SEED: resumable, snapshots) and keeps
+# each run's best checkpoint by in-training validation; the study plays that one
+ROW_BUDGET = RUNGS["rows_plus"].iterations  # 1,024 envs x 12 steps x 1,800 = 22.1 M env-steps
+ROW_METHODS = {m: list(RUNGS[m].overrides) for m in ("rows_plus", "rows_paper")}  # the ladder's rungs
+ROW_NAMES = {  # summary row -> its method
+    f"LAS-MP+, {ROW_BUDGET:,} it., seeds {ROW_SEEDS[0]}-{ROW_SEEDS[-1]}": "rows_plus",
+    f"LAS-MP (paper's recipe), {ROW_BUDGET:,} it., seeds {ROW_SEEDS[0]}-{ROW_SEEDS[-1]}": "rows_paper",
+}
+LADDER = LADDER_RESULTS  # where the ladder collects a row's run
+METHODS = PAPER_METHODS | PLUS_METHODS | ROW_METHODS
 MIRROR_EPISODES = 1024  # LAS-MP+'s runs are also played with their mirror twins on this many
 LEARNER = "algo.precision=bfloat16"  # the study's one learner (the docstring)
 FLOAT32_LEARNER = "float32_learner"  # under RESULTS: LAS-MP's runs under float32, before the pin
@@ -80,23 +94,28 @@ def last_iteration(d: Path) -> int:
     return max(its, default=-1)
 
 
-def saved_at(d: Path, it: int) -> Path:
+def saved_at(d: Path, it: int, method: str | None = None) -> Path:
     """The checkpoint of iteration `it` in run directory d: its full model_<it>.pt, or the policy_<it>.pt
-    that `runner.keep_full` turns an older save into once the run goes on (a missing one: the full name)."""
+    that `runner.keep_full` turns an older save into once the run goes on (a missing one: the full name);
+    a row's (ROW_METHODS), the best policy by validation that the ladder collected."""
+    if method in ROW_METHODS:
+        return LADDER / method / d.name / "policy_best.pt"
     full, policy = d / f"model_{it}.pt", d / f"policy_{it}.pt"
     return policy if not full.exists() and policy.exists() else full
 
 
 def budget(method: str) -> int:
-    """The iterations a method's runs train for: LAS-MP+'s (and its ablations') own, the rest BUDGET."""
-    return PLUS_BUDGET if method in PLUS_METHODS else BUDGET
+    """The iterations a method's runs train for: LAS-MP+'s (and its ablations') own, the new rows'
+    ROW_BUDGET, the rest BUDGET."""
+    return ROW_BUDGET if method in ROW_METHODS else PLUS_BUDGET if method in PLUS_METHODS else BUDGET
 
 
 def result_dir(
     method: str, seed: int, at: int, controller: str | None = None, root: Path | None = None
 ) -> Path:
     name = controller or method
-    return (root or RESULTS) / (name if at == BUDGET else f"{name}@{at}") / f"seed{seed}"
+    plain = ROW_BUDGET if method in ROW_METHODS else BUDGET  # the budget a directory's name leaves unsaid
+    return (root or RESULTS) / (name if at == plain else f"{name}@{at}") / f"seed{seed}"
 
 
 def controllers(method: str) -> list[str | None]:
@@ -107,7 +126,7 @@ def evaluations(method: str, seed: int, at: int) -> list[tuple[Path, list[str]]]
     """A run's evaluations, (out, evaluate.py's options): all of Xi_eval per controller, and for
     LAS-MP+'s runs the first MIRROR_EPISODES with their mirror twins (in the run's result, mirror/)."""
     runs = [(result_dir(method, seed, at, c), ["--controller", c] if c else []) for c in controllers(method)]
-    if method in PLUS_METHODS:
+    if method in PLUS_METHODS or method in ROW_METHODS:
         n = str(MIRROR_EPISODES)
         runs.append((result_dir(method, seed, at) / "mirror", ["--num-trajectories", n, "--mirror", n]))
     return runs
@@ -116,6 +135,8 @@ def evaluations(method: str, seed: int, at: int) -> list[tuple[Path, list[str]]]
 def committed_policy(method: str, seed: int, at: int) -> Path:
     """The policy checkpoint `record_run` committed beside the run's evaluation once it had trained to
     'at' iterations: it outlives the machine, runs/ does not."""
+    if method in ROW_METHODS:
+        return saved_at(run_dir(method, seed), at - 1, method)
     return result_dir(method, seed, at) / f"policy_{at - 1}.pt"
 
 
@@ -134,6 +155,10 @@ def steps():
     for method, seed, at in order:
         yield "train", method, seed, at
         yield "evaluate", method, seed, at
+    # last, the new rows, seed by seed (the ladder trains them)
+    for seed in ROW_SEEDS:
+        for method in ROW_METHODS:
+            yield "evaluate", method, seed, ROW_BUDGET
 
 
 def is_done(kind: str, method: str, seed: int, at: int) -> bool:
@@ -154,6 +179,7 @@ def summary_args() -> list[str]:
     LAS-MP+ on its fresh seeds, then the float32 learner's), and Stand Still."""
     rows = {name: [result_dir(m, s, at, c) for s in SEEDS] for name, (m, at, c) in ROWS.items()}
     rows[FRESH_ROW] = [result_dir("lasmp_plus", s, PLUS_BUDGET) for s in FRESH_SEEDS]
+    rows |= {name: [result_dir(m, s, ROW_BUDGET) for s in ROW_SEEDS] for name, m in ROW_NAMES.items()}
     for name, (m, at, seeds) in FLOAT32_ROWS.items():
         rows[name] = [result_dir(m, s, at, root=RESULTS / FLOAT32_LEARNER) for s in seeds]
     args = []

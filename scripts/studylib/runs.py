@@ -16,6 +16,7 @@ from . import plan
 from .plan import (
     LEARNER,
     METHODS,
+    ROW_METHODS,
     budget,
     committed_policy,
     evaluations,
@@ -79,6 +80,8 @@ def check_learner(cpuinfo: str | None = None) -> None:
 
 
 def train(method: str, seed: int, until: int | None = None) -> None:
+    if method in ROW_METHODS:
+        raise SystemExit(f"the ladder trains the new rows: python scripts/ladder.py train {method} {seed}")
     until = until or budget(method)
     d = run_dir(method, seed)
     done = last_iteration(d) + 1
@@ -129,11 +132,18 @@ def record_run(method: str, seed: int, at: int) -> None:
 
 def evaluate(method: str, seed: int, at: int | None = None) -> None:
     at = at or budget(method)
-    ckpt = saved_at(run_dir(method, seed), at - 1)
+    ckpt = saved_at(run_dir(method, seed), at - 1, method)
     if not ckpt.exists() and committed_policy(method, seed, at).exists():
         ckpt = committed_policy(method, seed, at)  # a fresh machine: the run's checkpoints are gone
     if not ckpt.exists():
-        raise SystemExit(f"{ckpt} does not exist: train {method} seed {seed} to {at} iterations first")
+        how = (
+            f"python scripts/ladder.py train {method} {seed}, then collect it"
+            if method in ROW_METHODS
+            else ""
+        )
+        raise SystemExit(
+            f"{ckpt} does not exist: train {method} seed {seed} to {at} iterations first{': ' + how if how else ''}"
+        )
     for out, options in evaluations(method, seed, at):
         if (out / "metrics.json").exists():
             print(f"{out} done")

@@ -16,6 +16,7 @@ from .plan import (
     FRESH_ROW,
     FRESH_SEEDS,
     PLUS_BUDGET,
+    ROW_NAMES,
     SEEDS,
     result_dir,
 )
@@ -35,7 +36,9 @@ TABLE_ROWS = {
     f"LAS-MP+ (ours), {PLUS_BUDGET:,} iterations (seed 0 is the shipped policy)": ("LAS-MP+",),
     f"LAS-MP+, seeds {', '.join(map(str, FRESH_SEEDS))} (no screening run saw them)": (FRESH_ROW,),
     **{f"LAS-MP+ {name}": (f"LAS-MP+ {name}",) for name in ABLATION_NAMES.values()},
+    **{f"{name} (the new rows: best checkpoint by validation)": (name,) for name in ROW_NAMES},
 }
+ROW_PLUS, ROW_PAPER = ROW_NAMES  # the new rows' summary names: LAS-MP+'s, the paper recipe's
 # the README's headline: label -> (summary row, the seed directory of a single run or None for the row
 # over its seeds, the paper's Table II row beside it (lasmp.eval.paper)); at most 8 rows
 SHIPPED_SEED = "results/study/lasmp_plus/seed0"  # resources/policies/lasmp_a1.pt (its README)
@@ -47,6 +50,7 @@ HEADLINE_ROWS = {
         "lasmp",
     ),
     f"LAS-MP, the paper's recipe, {BUDGET} iterations, seeds 0-2": ("LAS-MP", None, "lasmp"),
+    **{f"{name}, best checkpoint by validation": (name, None, "lasmp") for name in ROW_NAMES},
     "Stand Still (zero action)": ("Stand Still", None, "stand_still"),
     f"R-S (rough-terrain policy, zero command), {BUDGET} iterations, seeds 0-2": ("R-S", None, "rs"),
 }
@@ -226,6 +230,44 @@ def ordering(summary_path: Path | None = None) -> str:
             ready = len(row["seeds"]) == len(full["seeds"]) == len(SEEDS)
             cells = [_order(full["metrics"][m], row["metrics"][m]) if ready else "–" for m in TABLE_COLUMNS]
             lines.append(f"| {base} | {name} | {len(row['seeds'])} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def paired(summary_path: Path | None = None) -> str:
+    """The new rows seed by seed: LAS-MP+'s value minus the paper recipe's on the same seed, for each
+    metric, then the mean difference ± its 95 % t-interval (`lasmp.eval.results_table.t_interval`)
+    over the seeds both rows have evaluated. The two rows trained at the same budget on the same seeds,
+    so a seed's luck cancels out of its difference."""
+    from lasmp.eval.results_table import t_interval
+
+    methods = summary_methods(summary_path)
+    plus, paper = methods.get(ROW_PLUS), methods.get(ROW_PAPER)
+    if plus is None or paper is None:
+        return "the new rows: not both evaluated yet"
+    seeds_of = lambda e: {_seed_of(d): i for i, d in enumerate(e["seeds"])}  # noqa: E731
+    a, b = seeds_of(plus), seeds_of(paper)
+    both = [s for s in a if s in b]
+    lines = [
+        "| seed | " + " | ".join(f"{h}: LAS-MP+ − paper" for h, _ in TABLE_COLUMNS.values()) + " |",
+        "|---" * (len(TABLE_COLUMNS) + 1) + "|",
+    ]
+    diffs = {
+        metric: [
+            plus["metrics"][metric]["per_seed"][a[s]] - paper["metrics"][metric]["per_seed"][b[s]]
+            for s in both
+        ]
+        for metric in TABLE_COLUMNS
+    }
+    for i, seed in enumerate(both):
+        cells = [f"{diffs[m][i]:+{fmt}}" for m, (_, fmt) in TABLE_COLUMNS.items()]
+        lines.append(f"| {seed} | " + " | ".join(cells) + " |")
+    cells = []
+    for metric, (_, fmt) in TABLE_COLUMNS.items():
+        mean, half = t_interval(diffs[metric])
+        cells.append(
+            "–" if mean is None else f"{mean:+{fmt}}" + (f" ± {half:{fmt}}" if half is not None else "")
+        )
+    lines.append("| mean ± 95 % | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

@@ -20,7 +20,7 @@ from omegaconf import OmegaConf
 from omegaconf.errors import ConfigKeyError
 
 from lasmp.cli.train import make_runner
-from lasmp.config.base import ConfigError
+from lasmp.config.base import ConfigError, check_config
 from lasmp.config.train import (
     TASKS,
     AlgoCfg,
@@ -231,18 +231,26 @@ def test_the_env_option_must_be_the_tasks():
 
 
 @pytest.mark.parametrize(
-    "part, pattern",
+    "part, name, pattern",
     [
-        (PolicyCfg(explicit="none"), "policy.use_alignment needs policy.explicit=all"),
-        (AlgoCfg(roa_lambda=-1.0), "algo.roa_lambda must be a number in [0, 100]"),
-        (AlgoCfg(symmetry_cfg=SymmetryCfg(use_mirror_loss=True)), "algo.symmetry_cfg.mirror_loss_coeff"),
-        (RunnerCfg(keep_full=0), "runner.keep_full"),
+        (PolicyCfg(explicit="none"), "policy", "policy.use_alignment needs policy.explicit=all"),
+        (PolicyCfg(explicit="some"), "policy", "policy.explicit must be one of all | no_platform | none"),
+        (AlgoCfg(roa_lambda=-1.0), "algo", "algo.roa_lambda must be a number in [0, 100]"),
+        (
+            AlgoCfg(symmetry_cfg=SymmetryCfg(use_mirror_loss=True)),
+            "algo",
+            "algo.symmetry_cfg.mirror_loss_coeff",
+        ),
+        (RunnerCfg(keep_full=0), "runner", "runner.keep_full"),
     ],
 )
-def test_each_part_of_the_training_config_validates_itself_naming_the_key(part, pattern):
-    """As the env's parts do: the one place each setting is checked (validate_train_cfg calls them)."""
+def test_each_part_of_the_training_config_is_checked_by_what_its_class_declares_naming_the_key(
+    part, name, pattern
+):
+    """As the env's parts are: its class declares its limits and rules, `check_config` checks them, the
+    one place each setting is checked (validate_train_cfg walks the whole config with it)."""
     with pytest.raises(ConfigError, match=re.escape(pattern)):
-        part.validate()
+        check_config(part, name)
 
 
 @pytest.mark.parametrize("task", TASKS)
@@ -304,3 +312,52 @@ def test_the_env_schemas_import_without_the_envs():
     assert before == []
     assert "lasmp.envs.moving_platform.cfg" in after and "lasmp.envs.rough_static.cfg" in after
     assert [m for m in after if m.rsplit(".", 1)[-1] in ("env", "scene")] == []
+
+
+def test_check_config_checks_each_sections_declared_limits_then_its_rules_once_naming_nested_keys():
+    from dataclasses import dataclass, field
+
+    from lasmp.config.base import Bound
+
+    ruled = []
+
+    @dataclass
+    class Leaf:
+        BOUNDS = {"n": Bound(1, 10, "a count")}
+        RANGES = {"span": Bound(0, 1, "a share")}
+        CHOICES = {"kind": ("a", "b")}
+        n: int = 2
+        span: list[float] = field(default_factory=lambda: [0.2, 0.4])
+        kind: str = "a"
+
+        def check_rules(self, p):
+            ruled.append(p)
+            if self.n == 3:
+                raise ConfigError(f"{p}.n: three is refused by a rule")
+
+    @dataclass
+    class Root:
+        left: Leaf = field(default_factory=Leaf)
+        right: Leaf = field(default_factory=Leaf)
+
+    check_config(Root(), "top")
+    assert ruled == ["top.left", "top.right"]  # each section's rules once, in the tree's order
+    for bad, message in [
+        (Leaf(n=11), "top.right.n must be an integer in [1, 10] (a count), got 11"),
+        (Leaf(n=2.5), "top.right.n must be an integer"),  # declared int
+        (Leaf(span=[0.5, 0.2]), "top.right.span must be a [low, high] pair with low <= high"),
+        (Leaf(kind="c"), "top.right.kind must be one of a | b, got 'c'"),
+        (Leaf(n=3), "top.right.n: three is refused by a rule"),
+    ]:
+        with pytest.raises(ConfigError, match=re.escape(message)):
+            check_config(Root(right=bad), "top")
+    # every section's limits come before any rule: a limit broken on the right is named before a rule
+    # that the left breaks
+    ruled.clear()
+    with pytest.raises(ConfigError, match=re.escape("top.right.n must be")):
+        check_config(Root(left=Leaf(n=3), right=Leaf(n=0)), "top")
+    assert ruled == []
+    with pytest.raises(ConfigError, match=re.escape("unknown config key(s) ['top.left.typo']")):
+        leaf = Leaf()
+        leaf.typo = 1
+        check_config(Root(left=leaf), "top")

@@ -9,7 +9,7 @@ the other way round.
 
 YAML files and Hydra overrides fill these schemas (`lasmp/config/train.py` registers them);
 `build_env_cfg` merges a plain dict onto a schema's defaults (unknown keys are refused by OmegaConf,
-naming the key) and `validate` checks every value range, naming the offending field. Units are in the
+naming the key) and `check_config` checks every value range, naming the offending field. Units are in the
 field names.
 """
 
@@ -75,7 +75,11 @@ def check_bounds(cfg: Any, p: str, bounds: Mapping[str, Bound]) -> None:
     `p.field`; a field declared `int` (or `list[int]`) must hold integers."""
     declared = {f.name: str(f.type) for f in fields(cfg)}
     for name, bound in bounds.items():
-        bound.check(f"{p}.{name}", getattr(cfg, name), declared[name] in ("int", "list[int]"))
+        bound.check(_key(p, name), getattr(cfg, name), declared[name] in ("int", "list[int]"))
+
+
+def _key(p: str, name: str) -> str:
+    return f"{p}.{name}" if p else name
 
 
 def check_range(name: str, lo_hi: tuple[float, float] | list[float], bound: Bound) -> None:
@@ -137,25 +141,41 @@ def _check_finite(value: Any, key: str) -> None:
         raise ConfigError(f"{key} must be a finite number, got {value}")
 
 
-@dataclass
-class SimCfg:
-    dt_s: float = 0.005  # physics step (ours)
-    decimation: int = 4  # physics steps per policy step -> policy dt 0.02 s (ours)
-    num_threads: int = 0  # Batch worker threads; 0 = all cores
-    solver_iterations: int = 20  # fewer than MuJoCo's 100: contacts converge well before (ours)
-    solver_tolerance: float = 1e-8  # MuJoCo's default; MuJoCo Warp raises it to at least 1e-6
-    cone: str = "elliptic"  # pyramidal | elliptic; elliptic (ours): the same mu whichever way a foot slips
-    impratio: float = 1.0  # friction/normal impedance ratio; 1 (ours): at 10 the stance jitters, slides early
-    noslip_iterations: int = 2  # no-slip passes (0 = off); 2 (ours): without, feet creep at any tilt
-    warp_contacts_per_env: int = 64  # warp only: contact slots per env (MuJoCo Warp preallocates)
-    warp_constraints_per_env: int = 256  # warp only: constraint rows per env
+def check_config(cfg: Any, p: str) -> None:
+    """Check the config tree `cfg` (a dataclass, named `p`) whole, each section once: its keys
+    (`check_known_keys`) and numbers (`check_finite_values`), then every section's declared limits,
+    then each section's own rules, in the tree's order. A section's class declares what its settings
+    may be: BOUNDS (field -> Bound), RANGES (field -> the Bound of a [low, high] pair, `check_range`),
+    CHOICES (field -> the words it may be); and `check_rules(p)` holds what relates its fields or needs
+    code. This walk is the one place that checks them."""
+    check_known_keys(cfg, p)
+    check_finite_values(cfg, p)
+    sections = list(_sections(cfg, p))
+    for path, section in sections:
+        kind = type(section)
+        check_bounds(section, path, getattr(kind, "BOUNDS", {}))
+        for name, bound in getattr(kind, "RANGES", {}).items():
+            check_range(_key(path, name), getattr(section, name), bound)
+        for name, words in getattr(kind, "CHOICES", {}).items():
+            check_choice(_key(path, name), getattr(section, name), words)
+    for path, section in sections:
+        if hasattr(section, "check_rules"):
+            section.check_rules(path)
 
-    def validate(self, p: str):
-        check_bounds(self, p, SIM_BOUNDS)
-        longest = MAX_POLICY_DT_S / self.dt_s
-        Bound(1, int(longest + 1e-9), POLICY_DT_WHY).check(f"{p}.decimation", self.decimation, integer=True)
-        if self.cone not in ("pyramidal", "elliptic"):
-            raise ConfigError(f"{p}.cone must be 'pyramidal' or 'elliptic', got {self.cone!r}")
+
+def _sections(cfg: Any, p: str):
+    """(name, section) of dataclass `cfg` and of every dataclass under it, depth first, fields in order."""
+    yield p, cfg
+    for f in fields(cfg):
+        value = getattr(cfg, f.name)
+        if is_dataclass(value):
+            yield from _sections(value, _key(p, f.name))
+
+
+def check_choice(name: str, value: Any, words: tuple[str, ...]) -> None:
+    """Refuse a setting that is not one of `words`, naming them."""
+    if value not in words:
+        raise ConfigError(f"{name} must be one of {' | '.join(words)}, got {value!r}")
 
 
 MAX_POLICY_DT_S = 0.1
@@ -184,12 +204,24 @@ SIM_BOUNDS = {
 
 
 @dataclass
-class ControlCfg:
-    action_scale: float = 0.25  # q_target = q_nominal + action_scale * a (legged_gym's A1 value)
-    action_clip: float = 100.0  # actions are clipped to +-action_clip before scaling (rsl_rl convention)
+class SimCfg:
+    dt_s: float = 0.005  # physics step (ours)
+    decimation: int = 4  # physics steps per policy step -> policy dt 0.02 s (ours)
+    num_threads: int = 0  # Batch worker threads; 0 = all cores
+    solver_iterations: int = 20  # fewer than MuJoCo's 100: contacts converge well before (ours)
+    solver_tolerance: float = 1e-8  # MuJoCo's default; MuJoCo Warp raises it to at least 1e-6
+    cone: str = "elliptic"  # pyramidal | elliptic; elliptic (ours): the same mu whichever way a foot slips
+    impratio: float = 1.0  # friction/normal impedance ratio; 1 (ours): at 10 the stance jitters, slides early
+    noslip_iterations: int = 2  # no-slip passes (0 = off); 2 (ours): without, feet creep at any tilt
+    warp_contacts_per_env: int = 64  # warp only: contact slots per env (MuJoCo Warp preallocates)
+    warp_constraints_per_env: int = 256  # warp only: constraint rows per env
 
-    def validate(self, p: str):
-        check_bounds(self, p, CONTROL_BOUNDS)
+    BOUNDS = SIM_BOUNDS
+    CHOICES = {"cone": ("pyramidal", "elliptic")}
+
+    def check_rules(self, p: str):
+        longest = MAX_POLICY_DT_S / self.dt_s
+        Bound(1, int(longest + 1e-9), POLICY_DT_WHY).check(f"{p}.decimation", self.decimation, integer=True)
 
 
 CONTROL_BOUNDS = {
@@ -198,18 +230,19 @@ CONTROL_BOUNDS = {
     ),
     "action_clip": Bound(0, 1000, "action units: at 1000 it clips nothing a policy outputs", open_lo=True),
 }
-# the history estimators' two convolutions (lasmp/modules/estimator.py: kernels 6 and 4, strides 2 and 2)
-# need this many steps of history
-MIN_HISTORY_LENGTH = 12
 
 
 @dataclass
-class ObservationsCfg:
-    history_length: int = 20  # H (docs/method.md#inputs)
-    clip: float = 100.0  # every observation is clipped to +-clip (a NaN guard, not a normalizer)
+class ControlCfg:
+    action_scale: float = 0.25  # q_target = q_nominal + action_scale * a (legged_gym's A1 value)
+    action_clip: float = 100.0  # actions are clipped to +-action_clip before scaling (rsl_rl convention)
 
-    def validate(self, p: str):
-        check_bounds(self, p, OBSERVATIONS_BOUNDS)
+    BOUNDS = CONTROL_BOUNDS
+
+
+# the history estimators' two convolutions (lasmp/modules/estimator.py: kernels 6 and 4, strides 2 and 2)
+# need this many steps of history
+MIN_HISTORY_LENGTH = 12
 
 
 OBSERVATIONS_BOUNDS = {
@@ -219,6 +252,25 @@ OBSERVATIONS_BOUNDS = {
         f"policy steps of o^H: the estimators' convolutions need {MIN_HISTORY_LENGTH}; 500 is 10 s at 50 Hz, an episode",
     ),
     "clip": Bound(0, 1e4, "a NaN and runaway guard: no observation comes near 1e4", open_lo=True),
+}
+
+
+@dataclass
+class ObservationsCfg:
+    history_length: int = 20  # H (docs/method.md#inputs)
+    clip: float = 100.0  # every observation is clipped to +-clip (a NaN guard, not a normalizer)
+
+    BOUNDS = OBSERVATIONS_BOUNDS
+
+
+DOMAIN_RAND_BOUNDS = {
+    "trunk_mass_kg": Bound(0.5, 50, "kg: ten times the A1's trunk, 4.7"),
+    "com_shift_m": Bound(-0.5, 0.5, "m per axis: beyond the trunk's half-length"),
+    "foot_friction": Bound(0, 5, "rubber on rubber is 1 to 2"),
+    "joint_kp": Bound(0, 500, "N m/rad: over ten times the A1's 40"),
+    "joint_kd": Bound(0, 50, "N m s/rad: fifty times the A1's 1"),
+    "platform_kp_factor": Bound(0, 100, "times the drive's stiffness"),
+    "platform_kd_factor": Bound(0, 100, "times the drive's damping at kd_factor_ref"),
 }
 
 
@@ -236,20 +288,7 @@ class DomainRandRanges:
     platform_kp_factor: list[float] = field(default_factory=lambda: [1.0, 1.5])  # per axis
     platform_kd_factor: list[float] = field(default_factory=lambda: [0.02, 0.03])  # per axis
 
-    def validate(self, p: str):
-        for name, bound in DOMAIN_RAND_BOUNDS.items():
-            check_range(f"{p}.{name}", getattr(self, name), bound)
-
-
-DOMAIN_RAND_BOUNDS = {
-    "trunk_mass_kg": Bound(0.5, 50, "kg: ten times the A1's trunk, 4.7"),
-    "com_shift_m": Bound(-0.5, 0.5, "m per axis: beyond the trunk's half-length"),
-    "foot_friction": Bound(0, 5, "rubber on rubber is 1 to 2"),
-    "joint_kp": Bound(0, 500, "N m/rad: over ten times the A1's 40"),
-    "joint_kd": Bound(0, 50, "N m s/rad: fifty times the A1's 1"),
-    "platform_kp_factor": Bound(0, 100, "times the drive's stiffness"),
-    "platform_kd_factor": Bound(0, 100, "times the drive's damping at kd_factor_ref"),
-}
+    RANGES = DOMAIN_RAND_BOUNDS
 
 
 def _test_ranges() -> DomainRandRanges:
@@ -275,22 +314,7 @@ class DomainRandCfg:
     def ranges(self) -> DomainRandRanges:
         return self.train if self.split == "train" else self.test
 
-    def validate(self, p: str):
-        if self.split not in ("train", "test"):
-            raise ConfigError(f"{p}.split must be 'train' or 'test', got {self.split!r}")
-        self.train.validate(f"{p}.train")
-        self.test.validate(f"{p}.test")
-
-
-@dataclass
-class InitStateCfg:
-    yaw_range_rad: list[float] = field(default_factory=lambda: [-math.pi, math.pi])
-    foot_clearance_m: float = 0.001  # feet start this far above the surface: touching, never inside
-    xy_offset_max_m: float = 0.0  # start uniformly in a disc of this radius around the centre (0: at it)
-
-    def validate(self, p: str):
-        check_range(f"{p}.yaw_range_rad", self.yaw_range_rad, Bound(-math.pi, math.pi, "rad: a full turn"))
-        check_bounds(self, p, INIT_STATE_BOUNDS)
+    CHOICES = {"split": ("train", "test")}
 
 
 INIT_STATE_BOUNDS = {
@@ -299,6 +323,18 @@ INIT_STATE_BOUNDS = {
     ),
     "xy_offset_max_m": Bound(0, 0.7, "m from the centre: the robot must fit on the platform"),
 }
+
+
+@dataclass
+class InitStateCfg:
+    yaw_range_rad: list[float] = field(default_factory=lambda: [-math.pi, math.pi])
+    foot_clearance_m: float = 0.001  # feet start this far above the surface: touching, never inside
+    xy_offset_max_m: float = 0.0  # start uniformly in a disc of this radius around the centre (0: at it)
+
+    BOUNDS = INIT_STATE_BOUNDS
+    RANGES = {"yaw_range_rad": Bound(-math.pi, math.pi, "rad: a full turn")}
+
+
 # a fault threshold of both tasks' termination
 MAX_JOINT_VEL = Bound(
     0,
@@ -323,18 +359,11 @@ class BaseEnvCfg:
     init_state: InitStateCfg = field(default_factory=InitStateCfg)
     domain_rand: DomainRandCfg = field(default_factory=DomainRandCfg)
 
-    def validate(self, p: str = "env"):
-        check_known_keys(self, p)
-        check_finite_values(self, p)
-        Bound(1, MAX_ENVS, "a million envs take ~100 GiB").check(f"{p}.num_envs", self.num_envs, integer=True)
+    BOUNDS = {"num_envs": Bound(1, MAX_ENVS, "a million envs take ~100 GiB")}
+    CHOICES = {"backend": BACKENDS}
+
+    def check_rules(self, p: str):
         check_seed_key(f"{p}.seed", self.seed)
-        if self.backend not in BACKENDS:
-            names = " or ".join(map(repr, BACKENDS))
-            raise ConfigError(f"{p}.backend must be {names}, got {self.backend!r}")
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if is_dataclass(value):
-                value.validate(f"{p}.{f.name}")
 
 
 EnvCfgT = TypeVar("EnvCfgT", bound=BaseEnvCfg)
@@ -348,7 +377,7 @@ def build_env_cfg(overrides: Mapping[str, Any] | None = None, *, schema: type[En
     an env config is validated: the envs take the dataclass only and do not validate it again.
     """
     cfg = merge_env_cfg(overrides, schema=schema)
-    cfg.validate()
+    check_config(cfg, "env")
     return cfg
 
 

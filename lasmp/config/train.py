@@ -19,15 +19,7 @@ from omegaconf import OmegaConf
 
 from lasmp.algo.precision import PRECISIONS
 from lasmp.algo.symmetry import supports_mirror
-from lasmp.config.base import (
-    Bound,
-    ConfigError,
-    check_bounds,
-    check_finite_values,
-    check_known_keys,
-    check_seed_key,
-    merge_env_cfg,
-)
+from lasmp.config.base import Bound, ConfigError, check_config, check_seed_key, merge_env_cfg
 from lasmp.config.bounds import (
     ALGO_BOUNDS,
     LOSS_WEIGHT,
@@ -71,11 +63,10 @@ class PolicyCfg:
     # the level (docs/method.md#curriculum-randomization-episodes)
     init_noise_std: float = 0.5
 
-    def validate(self, p: str = "policy") -> None:
-        if self.explicit not in EXPLICIT_SELECTIONS:
-            raise ConfigError(
-                f"{p}.explicit must be {' | '.join(EXPLICIT_SELECTIONS)}, got {self.explicit!r}"
-            )
+    BOUNDS = POLICY_BOUNDS
+    CHOICES = {"explicit": EXPLICIT_SELECTIONS}
+
+    def check_rules(self, p: str) -> None:
         if self.use_alignment and self.explicit != "all":
             raise ConfigError(
                 f"{p}.use_alignment needs {p}.explicit=all (the command is built from platform estimates)"
@@ -87,7 +78,6 @@ class PolicyCfg:
                     f"{p}.{name} must list 1 to {MAX_LAYERS} hidden layer widths (rsl_rl's MLP needs one), "
                     f"got {list(dims)}"
                 )
-        check_bounds(self, p, POLICY_BOUNDS)
 
 
 @dataclass
@@ -103,8 +93,9 @@ class SymmetryCfg:
     def enabled(self) -> bool:
         return self.use_data_augmentation or self.use_mirror_loss
 
-    def validate(self, p: str) -> None:
-        LOSS_WEIGHT.check(f"{p}.mirror_loss_coeff", self.mirror_loss_coeff)
+    BOUNDS = {"mirror_loss_coeff": LOSS_WEIGHT}
+
+    def check_rules(self, p: str) -> None:
         if self.use_mirror_loss and self.mirror_loss_coeff == 0:
             raise ConfigError(f"{p}.mirror_loss_coeff must be > 0 with use_mirror_loss, got 0")
 
@@ -160,13 +151,8 @@ class AlgoCfg:
     # (docs/method.md#las-mp-the-options-that-depart-from-the-papers-recipe-ours)
     bootstrap_time_outs: bool = True
 
-    def validate(self, p: str = "algo") -> None:
-        check_bounds(self, p, ALGO_BOUNDS)
-        self.symmetry_cfg.validate(f"{p}.symmetry_cfg")
-        if self.precision not in PRECISIONS:
-            raise ConfigError(
-                f"{p}.precision must be one of {' | '.join(PRECISIONS)}, got {self.precision!r}"
-            )
+    BOUNDS = ALGO_BOUNDS
+    CHOICES = {"precision": PRECISIONS}
 
 
 @dataclass
@@ -196,8 +182,9 @@ class RunnerCfg:
     validation_interval: int = 50
     validation_episodes: int = 256
 
-    def validate(self, p: str = "runner") -> None:
-        check_bounds(self, p, RUNNER_BOUNDS)
+    BOUNDS = RUNNER_BOUNDS
+
+    def check_rules(self, p: str) -> None:
         validate_logger(self)
 
 
@@ -223,6 +210,13 @@ class TrainCfg:
     algo: AlgoCfg = field(default_factory=AlgoCfg)
     runner: RunnerCfg = field(default_factory=RunnerCfg)
 
+    BOUNDS = {"torch_threads": THREADS}
+
+    def check_rules(self, p: str) -> None:
+        # one rule for every seed: -1 or 2**64 would fail deep in numpy or torch (the first rule checked:
+        # env.seed follows seed)
+        check_seed_key("seed", self.seed)
+
 
 def register_configs() -> None:
     """`train_schema` (the base of cfg/config.yaml) and one option of the group `env` per task."""
@@ -237,20 +231,15 @@ def validate_train_cfg(cfg: TrainCfg) -> None:
         raise ConfigError(
             "env must be built with its task's schema (lasmp.config.train.to_train_cfg does it)"
         )
-    check_known_keys(cfg)  # a `+key=value` typo (Hydra appends it) or a misspelt attribute set in code
-    check_finite_values(cfg)  # NaN passes a range check written as a comparison
-    check_seed_key("seed", cfg.seed)  # one rule for every seed: -1 or 2**64 would fail deep in numpy or torch
-    THREADS.check("torch_threads", cfg.torch_threads, integer=True)
     schema = env_schema(cfg.task)
     if type(cfg.env) is not schema:
         raise ConfigError(
             f"env is a {type(cfg.env).__name__} but task={cfg.task} needs a {schema.__name__}: the task picks "
             f"its env (task=rough_static selects env=rough_static); drop the env=<option> override"
         )
-    cfg.env.validate("env")
-    cfg.policy.validate()
-    cfg.algo.validate()
-    cfg.runner.validate()
+    # every key known (a `+key=value` typo, which Hydra appends, or a misspelt attribute set in code),
+    # every number finite (NaN passes a range check written as a comparison), every section's limits and rules
+    check_config(cfg, "")
     check_policy_fits_task(cfg)
     a, r = cfg.algo, cfg.runner
     if a.symmetry_cfg.enabled and not supports_mirror(registry.env_class(cfg.task)):

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from lasmp.config.base import check_config
 from lasmp.envs.moving_platform.cfg import CurriculumCfg
 
 
@@ -34,10 +35,13 @@ class WaypointCurriculum:
         window_episodes: int = 200,
         replay_lower_fraction: float = 0.2,
     ) -> None:
-        # the config's rules (CurriculumCfg.validate, ConfigError: a ValueError), one place for them
-        CurriculumCfg(
-            True, level_min, level_max, promote_success_rate, window_episodes, replay_lower_fraction
-        ).validate("curriculum")
+        # the config's rules (CurriculumCfg's, ConfigError: a ValueError), one place for them
+        check_config(
+            CurriculumCfg(
+                True, level_min, level_max, promote_success_rate, window_episodes, replay_lower_fraction
+            ),
+            "curriculum",
+        )
         self.level_min = int(level_min)
         self.level_max = int(level_max)
         self.promote_success_rate = float(promote_success_rate)

@@ -66,7 +66,7 @@ class LasmpActor(MLPModelCompat):
     ) -> None:
         sel = explicit_indices(explicit)
         # whatever built it (rsl_rl's dict, a test), the actor cannot rebuild u_aln_hat without the
-        # platform velocity estimates; a training config says so first (PolicyCfg.validate)
+        # platform velocity estimates; a training config says so first (PolicyCfg.check_rules)
         if use_alignment and explicit != "all":
             raise ValueError(
                 f"use_alignment=True needs explicit='all': the alignment command is rebuilt from the platform "

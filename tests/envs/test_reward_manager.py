@@ -108,13 +108,13 @@ def test_registry_module_attributes_match():
 def test_h_des_reading_resolves_to_the_platform_frame():
     """h_des = 0.37 m is measured from the platform's top surface by default (0.1 m above the
     platform frame's origin); "centre" measures it from the origin."""
-    from lasmp.config.base import ConfigError
+    from lasmp.config.base import ConfigError, check_config
     from lasmp.envs.moving_platform.cfg import RewardsCfg
 
     assert RewardsCfg().h_des_p_m(0.1) == pytest.approx(0.47)
     assert RewardsCfg(h_des_from="centre").h_des_p_m(0.1) == pytest.approx(0.37)
     with pytest.raises(ConfigError, match="h_des_from"):
-        RewardsCfg(h_des_from="floor").validate("env.rewards")
+        check_config(RewardsCfg(h_des_from="floor"), "env.rewards")
 
 
 def test_a_manager_restored_from_its_state_dict_continues_the_same_episode_sums():

@@ -13,7 +13,7 @@ from testkit import REWARDS_P as P
 from testkit import assert_close_to as close
 from testkit import step_state as make_state
 
-from lasmp.config.base import ConfigError
+from lasmp.config.base import ConfigError, check_config
 from lasmp.envs.moving_platform import rewards as R
 from lasmp.envs.moving_platform.rewards import RewardsCfg
 from lasmp.envs.moving_platform.state import StepState
@@ -91,4 +91,4 @@ def test_the_support_margin_is_the_same_for_a_mirrored_stance():
 @pytest.mark.parametrize("bad", [0.0, -0.1, math.nan])
 def test_a_support_margin_reference_that_is_not_a_positive_length_is_refused_by_name(bad):
     with pytest.raises(ConfigError, match="support_margin_ref_m"):
-        RewardsCfg(support_margin_ref_m=bad).validate("env.rewards")
+        check_config(RewardsCfg(support_margin_ref_m=bad), "env.rewards")

@@ -13,7 +13,7 @@ from testkit import REWARDS_P as P
 from testkit import assert_close_to as close
 from testkit import step_state as make_state
 
-from lasmp.config.base import ConfigError
+from lasmp.config.base import ConfigError, check_config
 from lasmp.envs.moving_platform import rewards as R
 from lasmp.envs.moving_platform.rewards import DEFAULT_REWARD_WEIGHTS, REWARD_TERMS, RewardsCfg
 from lasmp.envs.moving_platform.state import StepState
@@ -196,7 +196,7 @@ def test_reg4_a_foot_held_up_to_the_time_limit_is_free_only_under_the_papers_tou
 
 def test_an_unknown_air_time_charge_is_refused_by_name():
     with pytest.raises(ConfigError, match="air_time_charge"):
-        RewardsCfg(air_time_charge="sometimes").validate("env.rewards")
+        check_config(RewardsCfg(air_time_charge="sometimes"), "env.rewards")
 
 
 def test_reg5_contact_time_only_at_liftoff_and_clipped():

@@ -11,9 +11,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from lasmp.config.base import MAX_JOINT_VEL, BaseEnvCfg, Bound, ConfigError, check_bounds
+from lasmp.config.base import MAX_JOINT_VEL, BaseEnvCfg, Bound, ConfigError
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.rewards import RewardsCfg
+
+PLATFORM_BOUNDS = {
+    "size_m": Bound(0, 100, "m: up to a ship's deck", open_lo=True),
+    "mass_kg": Bound(0, 1e7, "kg: 1e5 already makes the robot's push negligible", open_lo=True),
+    "friction": Bound(
+        0, 5, "as the feet's (domain_rand foot_friction <= 5); rubber on rubber is 1 to 2", open_lo=True
+    ),
+    "omega_n_rad_s": Bound(
+        0, 100, "rad/s: stiffer, the drive rings faster than the physics step resolves", open_lo=True
+    ),
+    "damping_ratio": Bound(0, 10, "past 10 the drive is so overdamped it barely follows", open_lo=True),
+    "kd_factor_ref": Bound(0, 100, "as domain_rand's platform_kd_factor, within [0, 100]", open_lo=True),
+}
 
 
 @dataclass
@@ -38,25 +51,18 @@ class PlatformCfg:
     # reference as a 2nd-order low-pass filter. True: force = kp (x_ref - x) + kd (v_ref - v).
     velocity_feedforward: bool = False
 
-    def validate(self, p: str):
+    BOUNDS = PLATFORM_BOUNDS
+
+    def check_rules(self, p: str):
         if len(self.size_m) != 3:
             raise ConfigError(
                 f"{p}.size_m must be three lengths (width, length, height), got {list(self.size_m)}"
             )
-        check_bounds(self, p, PLATFORM_BOUNDS)
 
 
-PLATFORM_BOUNDS = {
-    "size_m": Bound(0, 100, "m: up to a ship's deck", open_lo=True),
-    "mass_kg": Bound(0, 1e7, "kg: 1e5 already makes the robot's push negligible", open_lo=True),
-    "friction": Bound(
-        0, 5, "as the feet's (domain_rand foot_friction <= 5); rubber on rubber is 1 to 2", open_lo=True
-    ),
-    "omega_n_rad_s": Bound(
-        0, 100, "rad/s: stiffer, the drive rings faster than the physics step resolves", open_lo=True
-    ),
-    "damping_ratio": Bound(0, 10, "past 10 the drive is so overdamped it barely follows", open_lo=True),
-    "kd_factor_ref": Bound(0, 100, "as domain_rand's platform_kd_factor, within [0, 100]", open_lo=True),
+TRAJECTORY_BOUNDS = {
+    "duration_s": Bound(0, 3600, "s: an episode of up to an hour", open_lo=True),
+    "hold_s": Bound(0, 3600, "s: a hold of up to an hour"),
 }
 
 
@@ -74,10 +80,10 @@ class TrajectoryCfg:
     # cut off counts. Evaluation and play set it to 0 (Xi_eval's episodes stay T long)
     hold_s: float = 0.0
 
-    def validate(self, p: str):
-        if self.split not in ("train", "test"):
-            raise ConfigError(f"{p}.split must be 'train' or 'test', got {self.split!r}")
-        check_bounds(self, p, TRAJECTORY_BOUNDS)
+    BOUNDS = TRAJECTORY_BOUNDS
+    CHOICES = {"split": ("train", "test")}
+
+    def check_rules(self, p: str):
         try:
             trj.SplineSpec(self.kind, self.degree)
         except ValueError as err:
@@ -86,30 +92,6 @@ class TrajectoryCfg:
     @property
     def spline(self) -> trj.SplineSpec:
         return trj.SplineSpec(self.kind, self.degree)
-
-
-TRAJECTORY_BOUNDS = {
-    "duration_s": Bound(0, 3600, "s: an episode of up to an hour", open_lo=True),
-    "hold_s": Bound(0, 3600, "s: a hold of up to an hour"),
-}
-
-
-@dataclass
-class CurriculumCfg:
-    enabled: bool = True  # False: N is drawn uniformly from the split's range every episode
-    level_min: int = 5
-    level_max: int = 15
-    promote_success_rate: float = 0.8
-    window_episodes: int = 200  # (ours) episodes at the current level over which success is measured
-    replay_lower_fraction: float = 0.2  # (ours) share of episodes that replay mastered levels
-
-    def validate(self, p: str):
-        check_bounds(self, p, CURRICULUM_BOUNDS)
-        if self.level_min > self.level_max:
-            raise ConfigError(
-                f"{p}: need level_min <= level_max, got {p}.level_min={self.level_min}, "
-                f"{p}.level_max={self.level_max}"
-            )
 
 
 LEVELS = Bound(1, 50, "waypoints N over the trajectory: at 50 in 10 s the platform turns every 0.2 s")
@@ -127,13 +109,22 @@ CURRICULUM_BOUNDS = {
 
 
 @dataclass
-class TerminationCfg:
-    fall_below_top_m: float = 0.0  # a trunk CoM lower than the top surface + this counts as a fall
-    footprint_margin_m: float = 0.0  # a trunk CoM beyond the platform's edge + this counts as off
-    max_joint_vel_rad_s: float = 200.0  # beyond this the simulation is considered diverged (a fault)
+class CurriculumCfg:
+    enabled: bool = True  # False: N is drawn uniformly from the split's range every episode
+    level_min: int = 5
+    level_max: int = 15
+    promote_success_rate: float = 0.8
+    window_episodes: int = 200  # (ours) episodes at the current level over which success is measured
+    replay_lower_fraction: float = 0.2  # (ours) share of episodes that replay mastered levels
 
-    def validate(self, p: str):
-        check_bounds(self, p, TERMINATION_BOUNDS)
+    BOUNDS = CURRICULUM_BOUNDS
+
+    def check_rules(self, p: str):
+        if self.level_min > self.level_max:
+            raise ConfigError(
+                f"{p}: need level_min <= level_max, got {p}.level_min={self.level_min}, "
+                f"{p}.level_max={self.level_max}"
+            )
 
 
 TERMINATION_BOUNDS = {
@@ -145,6 +136,15 @@ TERMINATION_BOUNDS = {
     ),
     "max_joint_vel_rad_s": MAX_JOINT_VEL,
 }
+
+
+@dataclass
+class TerminationCfg:
+    fall_below_top_m: float = 0.0  # a trunk CoM lower than the top surface + this counts as a fall
+    footprint_margin_m: float = 0.0  # a trunk CoM beyond the platform's edge + this counts as off
+    max_joint_vel_rad_s: float = 200.0  # beyond this the simulation is considered diverged (a fault)
+
+    BOUNDS = TERMINATION_BOUNDS
 
 
 @dataclass

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from lasmp.config.base import Bound, ConfigError, check_bounds
+from lasmp.config.base import Bound
 from lasmp.envs import rewards as shared
 from lasmp.envs.moving_platform.state import StepState
 from lasmp.robots.a1 import LEG_NAMES
@@ -216,6 +216,21 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
 AIR_TIME_CHARGES = ("touchdown", "accrue", "timeout")
 
 
+# the shape parameters: each > 0 (a kernel's width, a tolerance), and no larger than what the robot or the
+# platform ever reaches, beyond which the term pays (or charges) the same for every state
+REWARD_BOUNDS = {
+    "sigma_center_m": Bound(0, 10, "m: five times the platform's width", open_lo=True),
+    "sigma_alignment": Bound(0, 10, "m/s and rad/s: far beyond any platform's speed", open_lo=True),
+    "sigma_level_rad": Bound(0, 3.15, "rad: a half turn", open_lo=True),
+    "sigma_height_m": Bound(0, 1, "m: more than the A1's legs reach", open_lo=True),
+    "h_des_m": Bound(0, 1, "m: the A1's legs reach 0.4 m", open_lo=True),
+    "f_tol_n": Bound(0, 1000, "N per foot: eight times the A1's weight", open_lo=True),
+    "t_swing_des_s": Bound(0, 10, "s: an episode", open_lo=True),
+    "t_contact_des_s": Bound(0, 10, "s: an episode", open_lo=True),
+    "support_margin_ref_m": Bound(0, 1, "m: the A1's support polygon is about 0.4 by 0.3 m", open_lo=True),
+}
+
+
 @dataclass
 class RewardsCfg:
     """`env.rewards`: a weight per term (0 skips it) and the terms' shape parameters."""
@@ -242,15 +257,11 @@ class RewardsCfg:
     # closing the loophole of a foot held up to the episode's end; the module docstring)
     air_time_charge: str = "touchdown"
 
-    def validate(self, p: str):
+    BOUNDS = REWARD_BOUNDS
+    CHOICES = {"h_des_from": ("top", "centre"), "air_time_charge": tuple(AIR_TIME_CHARGES)}
+
+    def check_rules(self, p: str):
         shared.check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
-        if self.h_des_from not in ("top", "centre"):
-            raise ConfigError(f"{p}.h_des_from must be 'top' or 'centre', got {self.h_des_from!r}")
-        if self.air_time_charge not in AIR_TIME_CHARGES:
-            raise ConfigError(
-                f"{p}.air_time_charge must be one of {list(AIR_TIME_CHARGES)}, got {self.air_time_charge!r}"
-            )
-        check_bounds(self, p, REWARD_BOUNDS)
 
     def h_des_p_m(self, plf_top_m: float) -> float:
         """h_des in the platform frame (origin at its CoM), m: what rewards and metrics compare p_body_p,z to."""
@@ -259,18 +270,3 @@ class RewardsCfg:
     def in_platform_frame(self, plf_top_m: float) -> RewardsCfg:
         """The same config with h_des measured from the platform frame's origin: what the terms read."""
         return dataclasses.replace(self, h_des_m=self.h_des_p_m(plf_top_m), h_des_from="centre")
-
-
-# the shape parameters: each > 0 (a kernel's width, a tolerance), and no larger than what the robot or the
-# platform ever reaches, beyond which the term pays (or charges) the same for every state
-REWARD_BOUNDS = {
-    "sigma_center_m": Bound(0, 10, "m: five times the platform's width", open_lo=True),
-    "sigma_alignment": Bound(0, 10, "m/s and rad/s: far beyond any platform's speed", open_lo=True),
-    "sigma_level_rad": Bound(0, 3.15, "rad: a half turn", open_lo=True),
-    "sigma_height_m": Bound(0, 1, "m: more than the A1's legs reach", open_lo=True),
-    "h_des_m": Bound(0, 1, "m: the A1's legs reach 0.4 m", open_lo=True),
-    "f_tol_n": Bound(0, 1000, "N per foot: eight times the A1's weight", open_lo=True),
-    "t_swing_des_s": Bound(0, 10, "s: an episode", open_lo=True),
-    "t_contact_des_s": Bound(0, 10, "s: an episode", open_lo=True),
-    "support_margin_ref_m": Bound(0, 1, "m: the A1's support polygon is about 0.4 by 0.3 m", open_lo=True),
-}

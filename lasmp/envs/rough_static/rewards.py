@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from lasmp.config.base import Bound, check_bounds
+from lasmp.config.base import Bound
 from lasmp.envs import rewards as shared
 from lasmp.envs.rough_static.state import StepState
 
@@ -106,6 +106,12 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
 }
 
 
+REWARD_BOUNDS = {
+    "tracking_sigma": Bound(0, 25, "(m/s)^2 and (rad/s)^2: the commands span +-5", open_lo=True),
+    "air_time_target_s": Bound(0, 10, "s: half the default episode"),
+}
+
+
 @dataclass
 class RewardsCfg:
     """`env.rewards`: a weight per term (0 skips it) and the terms' shape parameters."""
@@ -114,12 +120,7 @@ class RewardsCfg:
     tracking_sigma: float = 0.25  # (m/s)² and (rad/s)²
     air_time_target_s: float = 0.5
 
-    def validate(self, p: str):
+    BOUNDS = REWARD_BOUNDS
+
+    def check_rules(self, p: str):
         shared.check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
-        check_bounds(self, p, REWARD_BOUNDS)
-
-
-REWARD_BOUNDS = {
-    "tracking_sigma": Bound(0, 25, "(m/s)^2 and (rad/s)^2: the commands span +-5", open_lo=True),
-    "air_time_target_s": Bound(0, 10, "s: half the default episode"),
-}

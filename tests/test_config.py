@@ -20,7 +20,7 @@ from omegaconf import OmegaConf
 from omegaconf.errors import ConfigKeyError
 
 from lasmp.cli.train import make_runner
-from lasmp.config.base import ConfigError, check_config
+from lasmp.config.checks import ConfigError, check_config
 from lasmp.config.train import (
     TASKS,
     AlgoCfg,
@@ -317,7 +317,7 @@ def test_the_env_schemas_import_without_the_envs():
 def test_check_config_checks_each_sections_declared_limits_then_its_rules_once_naming_nested_keys():
     from dataclasses import dataclass, field
 
-    from lasmp.config.base import Bound
+    from lasmp.config.checks import Bound
 
     ruled = []
 

@@ -29,6 +29,7 @@ LAYERS = (
     ("lasmp.modules",),
     ("lasmp.config.bounds",),
     ("lasmp.robots", "lasmp.config.base", "lasmp.io.plainstate", "lasmp.io.rundir", "lasmp.io.memory"),
+    ("lasmp.config.checks",),
     ("lasmp.io.atomic", "lasmp.io.inputs", "lasmp.io.ctrl_c", "lasmp.cli.preflight", "lasmp.io.errors"),
     ("lasmp.compat.rsl_rl", "lasmp.compat.tensorboard", "lasmp.compat.hydra"),
     GROUPS,

@@ -21,8 +21,8 @@ import lasmp.cli.train
 import lasmp.config.train
 from lasmp.algo.checkpoint import CheckpointError, read_checkpoint
 from lasmp.cli.train import train
-from lasmp.config.base import ConfigError
 from lasmp.config.checkpoint import checkpoint_cfg
+from lasmp.config.checks import ConfigError
 from lasmp.config.train import register_configs, rsl_rl_cfg
 from lasmp.eval.curves import read_scalars
 

@@ -10,7 +10,7 @@ from testkit import ROOT
 
 from lasmp.algo.checkpoint import read_checkpoint
 from lasmp.cli.train import make_runner, train
-from lasmp.config.base import ConfigError
+from lasmp.config.checks import ConfigError
 from lasmp.config.train import register_configs, to_train_cfg
 
 register_configs()

@@ -12,7 +12,7 @@ from lasmp.algo.checkpoint import CheckpointError, policy_checkpoint, read_check
 from lasmp.algo.checkpoint.light import write_light
 from lasmp.cli.train import make_runner, train
 from lasmp.cli.warm_start import WarmStart
-from lasmp.config.base import ConfigError
+from lasmp.config.checks import ConfigError
 from lasmp.io.rundir import RunDirError
 
 

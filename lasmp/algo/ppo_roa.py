@@ -141,7 +141,7 @@ class PPOROA(PPO):
         self._learner_started, self._compiled = False, False
         if compile_mlps:  # forced: compiled now, as the switch always did
             self._compile_networks()
-        # the settings' ranges are checked once, by the training config (AlgoCfg.BOUNDS, `lasmp.config.base.check_config`)
+        # the settings' ranges are checked once, by the training config (AlgoCfg.BOUNDS, `lasmp.config.checks.check_config`)
         self.roa_lambda = roa_lambda
         self.bootstrap_time_outs = bootstrap_time_outs
         self.estimator_epochs = estimator_epochs

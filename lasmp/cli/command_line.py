@@ -5,7 +5,7 @@ name, and a sweep its basic sweeper alone can expand (a glob, an interval).
 
 Why lasmp composes: an override naming no config key is the one failure Hydra words against us (it
 suggests appending the key with `+`, which the README rules out and validation would refuse anyway,
-`lasmp.config.base.check_known_keys`); ours names the key and the keys valid where it points. A key
+`lasmp.config.checks.check_known_keys`); ours names the key and the keys valid where it points. A key
 that a recipe (cfg/recipe/) sets and the env lacks is worded as the recipe's: the recipes are the
 moving platform's. A sweep (`-m`) is composed job by job, as Hydra's basic sweeper expands it, every
 job before the first runs, so that a typo in any job is refused before any work.

@@ -11,7 +11,7 @@ import shutil
 from pathlib import Path
 
 from lasmp.algo.runner import LasmpRunner
-from lasmp.config.base import ConfigError
+from lasmp.config.checks import ConfigError
 from lasmp.config.train import TrainCfg
 from lasmp.envs import registry
 from lasmp.io.inputs import size_in_words

@@ -25,7 +25,7 @@ from lasmp.cli.resume import Resume, check_run_dir
 from lasmp.cli.run_directory import config_header, default_log_dir, finished_message, remove_failed_start
 from lasmp.cli.train_failures import RankLost, named, quiet_writer_threads
 from lasmp.cli.warm_start import WarmStart
-from lasmp.config.base import ConfigError
+from lasmp.config.checks import ConfigError
 from lasmp.config.recipe import run_label
 from lasmp.config.train import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
 from lasmp.envs import registry

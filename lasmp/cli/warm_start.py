@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 from lasmp.algo.checkpoint import learning_rates, read_checkpoint
 from lasmp.algo.checkpoint.sanity import check_state
 from lasmp.cli.resume import resumed_cfg
-from lasmp.config.base import ConfigError
+from lasmp.config.checks import ConfigError
 from lasmp.config.train import TrainCfg
 from lasmp.envs.trajectories.splines import PADDING
 

@@ -1,10 +1,10 @@
 """The ranges of the training settings (`lasmp.config.train`: policy, algo, runner, torch_threads) and the
-reason for each: a physical or computational one (`lasmp.config.base.Bound`). The env settings' ranges sit
+reason for each: a physical or computational one (`lasmp.config.checks.Bound`). The env settings' ranges sit
 beside their schemas (`lasmp/config/base.py`, `lasmp/envs/<task>/cfg.py`)."""
 
 from __future__ import annotations
 
-from lasmp.config.base import Bound
+from lasmp.config.checks import Bound
 
 MAX_VALIDATION_EPISODES = 2_000  # the validation benchmark's size (lasmp.eval.benchmark.VALIDATION)
 

@@ -19,7 +19,7 @@ from omegaconf import OmegaConf
 
 from lasmp.algo.precision import PRECISIONS
 from lasmp.algo.symmetry import supports_mirror
-from lasmp.config.base import Bound, ConfigError, check_config, check_seed_key, merge_env_cfg
+from lasmp.config.base import merge_env_cfg
 from lasmp.config.bounds import (
     ALGO_BOUNDS,
     LOSS_WEIGHT,
@@ -28,6 +28,7 @@ from lasmp.config.bounds import (
     RUNNER_BOUNDS,
     THREADS,
 )
+from lasmp.config.checks import Bound, ConfigError, check_config, check_seed_key
 from lasmp.envs import registry
 from lasmp.envs.registry import env_schema
 from lasmp.modules.obs_groups import EXPLICIT_SELECTIONS

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from lasmp.config.base import check_config
+from lasmp.config.checks import check_config
 from lasmp.envs.moving_platform.cfg import CurriculumCfg
 
 

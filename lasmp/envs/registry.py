@@ -8,7 +8,8 @@ import modules of that package, which would then import them back.
 
 from __future__ import annotations
 
-from lasmp.config.base import BaseEnvCfg, ConfigError
+from lasmp.config.base import BaseEnvCfg
+from lasmp.config.checks import ConfigError
 from lasmp.envs.base_env import BaseEnv
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.envs.rough_static.env import RoughStaticEnv

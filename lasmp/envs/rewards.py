@@ -17,7 +17,7 @@ from typing import Any
 
 import torch
 
-from lasmp.config.base import Bound, ConfigError
+from lasmp.config.checks import Bound, ConfigError
 
 RewardFn = Callable[[Any, Any], torch.Tensor]  # (a task's step state, its rewards config) -> (n,)
 

@@ -17,7 +17,7 @@ from testkit import ROOT, tiny
 from lasmp.algo import checkpoint as ckpt
 from lasmp.algo.checkpoint import CheckpointError, is_policy_only, latest_checkpoint, read_checkpoint
 from lasmp.cli.train import train
-from lasmp.config.base import ConfigError
+from lasmp.config.checks import ConfigError
 from lasmp.config.train import register_configs, to_train_cfg
 from lasmp.io.atomic import AtomicWriteError
 

@@ -10,7 +10,7 @@ from testkit import tiny
 from lasmp.algo import precision as prec
 from lasmp.algo.precision import cpu_has_fast_bf16, resolve_precision
 from lasmp.cli.train import make_runner, train
-from lasmp.config.base import ConfigError
+from lasmp.config.checks import ConfigError
 
 AVX2_ONLY = """processor\t: 0
 vendor_id\t: AuthenticAMD

@@ -7,7 +7,7 @@ import pytest
 import torch
 from testkit import tiny
 
-from lasmp.config.base import ConfigError
+from lasmp.config.checks import ConfigError
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES
 
 

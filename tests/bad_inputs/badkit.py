@@ -89,7 +89,7 @@ def _entry(cfg, overrides: list[str]) -> int:
     # an older train.py, without main(): its train(cfg)
     from lasmp.algo.checkpoint import CheckpointError
     from lasmp.algo.stopping import TrainingInterrupted
-    from lasmp.config.base import ConfigError
+    from lasmp.config.checks import ConfigError
 
     try:
         lt.train(cfg)

@@ -20,7 +20,7 @@ from badkit import ROOT, call, refused
 from hydra import compose, initialize_config_dir
 
 from lasmp.cli.resources import check_memory, memory_need
-from lasmp.config.base import ConfigError
+from lasmp.config.checks import ConfigError
 from lasmp.config.train import TrainCfg, to_train_cfg
 from lasmp.envs.trajectories.cli import main as trajectories_main
 from lasmp.io.memory import available_memory

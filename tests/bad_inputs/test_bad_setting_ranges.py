@@ -1,5 +1,5 @@
 """Every numeric setting is checked for meaning: each has a range that a physical or computational
-reason sets (`lasmp.config.base.Bound`), and a value outside it is refused at start-up with a ConfigError
+reason sets (`lasmp.config.checks.Bound`), and a value outside it is refused at start-up with a ConfigError
 that names the key (train.py prints it as one line, `error: ...`, exit 2).
 
 The walk covers the class, not a list of examples: it visits every numeric leaf of the composed default
@@ -19,7 +19,8 @@ import pytest
 from badkit import ROOT, refused, tiny, train, train_py
 from hydra import compose, initialize_config_dir
 
-from lasmp.config.base import MIN_HISTORY_LENGTH, ConfigError
+from lasmp.config.base import MIN_HISTORY_LENGTH
+from lasmp.config.checks import ConfigError
 from lasmp.config.train import TASKS, TrainCfg, to_train_cfg, validate_train_cfg
 from lasmp.envs import registry
 from lasmp.modules.estimator import HistoryEstimator

@@ -9,7 +9,8 @@ import pytest
 import torch
 from testkit import platform_env as make
 
-from lasmp.config.base import ConfigError, build_env_cfg
+from lasmp.config.base import build_env_cfg
+from lasmp.config.checks import ConfigError
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.env import MovingPlatformEnv

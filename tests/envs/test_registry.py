@@ -9,7 +9,8 @@ import pytest
 import yaml
 from hydra.core.config_store import ConfigStore
 
-from lasmp.config.base import ConfigError, build_env_cfg
+from lasmp.config.base import build_env_cfg
+from lasmp.config.checks import ConfigError
 from lasmp.config.train import TASKS, register_configs
 from lasmp.envs import registry
 

@@ -108,7 +108,7 @@ def test_registry_module_attributes_match():
 def test_h_des_reading_resolves_to_the_platform_frame():
     """h_des = 0.37 m is measured from the platform's top surface by default (0.1 m above the
     platform frame's origin); "centre" measures it from the origin."""
-    from lasmp.config.base import ConfigError, check_config
+    from lasmp.config.checks import ConfigError, check_config
     from lasmp.envs.moving_platform.cfg import RewardsCfg
 
     assert RewardsCfg().h_des_p_m(0.1) == pytest.approx(0.47)

@@ -13,7 +13,7 @@ from testkit import REWARDS_P as P
 from testkit import assert_close_to as close
 from testkit import step_state as make_state
 
-from lasmp.config.base import ConfigError, check_config
+from lasmp.config.checks import ConfigError, check_config
 from lasmp.envs.moving_platform import rewards as R
 from lasmp.envs.moving_platform.rewards import RewardsCfg
 from lasmp.envs.moving_platform.state import StepState

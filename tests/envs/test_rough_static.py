@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from lasmp.config.base import ConfigError, build_env_cfg
+from lasmp.config.base import build_env_cfg
+from lasmp.config.checks import ConfigError
 from lasmp.envs.moving_platform.rewards import REWARD_TERMS as MOVING_PLATFORM_TERMS
 from lasmp.envs.rewards import RewardManager
 from lasmp.envs.robot import read_robot

@@ -175,7 +175,7 @@ def test_train_cli_validates_keeps_the_best_policy_and_its_curve(tmp_path):
     ],
 )
 def test_validation_settings_out_of_range_are_refused_naming_the_key(tmp_path, key, value, message):
-    from lasmp.config.base import ConfigError
+    from lasmp.config.checks import ConfigError
 
     with pytest.raises(ConfigError, match=message):
         tiny(tmp_path, runner={key: value})

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from lasmp.config.base import MAX_JOINT_VEL, BaseEnvCfg, Bound, ConfigError
+from lasmp.config.base import MAX_JOINT_VEL, BaseEnvCfg
+from lasmp.config.checks import Bound, ConfigError
 from lasmp.envs import trajectories as trj
 from lasmp.envs.moving_platform.rewards import RewardsCfg
 

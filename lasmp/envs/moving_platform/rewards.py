@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from lasmp.config.base import Bound
+from lasmp.config.checks import Bound
 from lasmp.envs import rewards as shared
 from lasmp.envs.moving_platform.state import StepState
 from lasmp.robots.a1 import LEG_NAMES

@@ -11,13 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from lasmp.config.base import (
-    MAX_JOINT_VEL,
-    BaseEnvCfg,
-    Bound,
-    ConfigError,
-    check_seed_key,
-)
+from lasmp.config.base import MAX_JOINT_VEL, BaseEnvCfg
+from lasmp.config.checks import Bound, ConfigError, check_seed_key
 from lasmp.envs.rough_static.rewards import RewardsCfg
 
 TERRAIN_BOUNDS = {

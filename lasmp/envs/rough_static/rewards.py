@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from lasmp.config.base import Bound
+from lasmp.config.checks import Bound
 from lasmp.envs import rewards as shared
 from lasmp.envs.rough_static.state import StepState
 

@@ -5,10 +5,11 @@ small fails at the first save, after the first iterations."""
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import shutil
 from pathlib import Path
+
+import mujoco
 
 from lasmp.algo.runner import LasmpRunner
 from lasmp.config.checks import ConfigError
@@ -18,34 +19,28 @@ from lasmp.io.inputs import size_in_words
 from lasmp.io.memory import available_memory
 from lasmp.io.rundir import RunDirError
 
+NUM_ACTIONS = 12  # the A1's joint targets, every task's action
 FLOAT_BYTES = 4  # the rollout storage, the observations and the networks are float32
 # a network's parameter is held four times over while learning: the weights, their gradient, Adam's two moments
 PARAM_COPIES = 4
 
 
 def env_bytes(cfg: TrainCfg) -> dict[str, int]:
-    """A lower bound of the memory one env of `cfg` takes, in bytes by part, measured on a
-    probe env of one: its MuJoCo data's buffer (MjData.nbuffer: state, positions, velocities,
-    contacts' space; the arena MuJoCo reserves on top is not counted, as it is touched only as needed),
-    its observation (every group, float32; env.observations.history_length sets the history's), the two
-    spare history buffers the env writes in turn, and its share of the rollout storage the learner keeps
-    (runner.num_steps_per_env steps of that observation, the actions' sample, mean and std, and six
-    scalars: reward, done, value, log-probability, return, advantage). The learner's update copies are
-    left out: the bound only refuses what cannot fit."""
-    one = dataclasses.replace(cfg.env, num_envs=1)
-    probe = registry.make_env(cfg.task, one, cfg.device)
-    try:
-        physics = 0
-        batch = getattr(probe.sim, "batch", None)
-        if batch is not None and hasattr(batch, "get_data"):
-            physics = int(batch.get_data(0).nbuffer)
-        obs = probe.get_observations()
-        obs_floats = sum(v[0].numel() for v in obs.values())
-        spares = sum(b[0].numel() for b in getattr(probe, "_history_spares", ()))
-        step_floats = obs_floats + 3 * probe.num_actions + 6
-    finally:
-        with contextlib.suppress(Exception):
-            probe.close()
+    """A lower bound of the memory one env of `cfg` takes, in bytes by part, from the task's model and
+    its declared observation widths (no env is built): the MuJoCo data's buffer of one env
+    (MjData.nbuffer: state, positions, velocities, contacts' space; the arena MuJoCo reserves on top is
+    not counted, as it is touched only as needed), its observation (every group, float32;
+    env.observations.history_length sets the history's), the two spare history buffers the env writes
+    in turn, and its share of the rollout storage the learner keeps (runner.num_steps_per_env steps of
+    that observation, the actions' sample, mean and std, and six scalars: reward, done, value,
+    log-probability, return, advantage). The learner's update copies are left out: the bound only
+    refuses what cannot fit."""
+    env_class = registry.env_class(cfg.task)
+    physics = mujoco.MjData(env_class.build_model(cfg.env)).nbuffer
+    widths = env_class.observation_widths(cfg.env)
+    obs_floats = sum(widths.values())
+    spares = 2 * widths["history"]
+    step_floats = obs_floats + 3 * NUM_ACTIONS + 6
     return {
         "physics": physics,
         "observation": obs_floats * FLOAT_BYTES,
@@ -85,6 +80,7 @@ def memory_need(cfg: TrainCfg, processes: int = 1) -> MemoryNeed:
     """What a training of `cfg` takes at least: every size setting counts (env.num_envs,
     runner.num_steps_per_env, the observation history, the networks' widths, the validation env's
     runner.validation_episodes). `processes`: the machine's ranks, each with its own envs and networks."""
+    networks = network_bytes(cfg)
     per_env = env_bytes(cfg)
     one = sum(per_env.values())
     validating = cfg.runner.validation_interval > 0 and cfg.task == "moving_platform"
@@ -92,7 +88,7 @@ def memory_need(cfg: TrainCfg, processes: int = 1) -> MemoryNeed:
     return MemoryNeed(
         per_env=per_env,
         envs=processes * cfg.env.num_envs * one,
-        networks=processes * network_bytes(cfg),
+        networks=processes * networks,
         validation=cfg.runner.validation_episodes * played if validating else 0,
     )
 
@@ -130,8 +126,8 @@ def check_memory(cfg: TrainCfg, processes: int = 1, *, available: tuple[int, str
     ranks = f" x {processes} processes" if processes > 1 else ""
     raise ConfigError(
         f"env.num_envs={cfg.env.num_envs}{ranks} cannot fit in memory: this training needs at least "
-        f"{size_in_words(need.total)} ({' + '.join(terms)}; {size_in_words(one)} per env: {parts}; measured on "
-        f"one env), and {size_in_words(left)} is available ({source}). {advice}"
+        f"{size_in_words(need.total)} ({' + '.join(terms)}; {size_in_words(one)} per env: {parts}; from one env's model "
+        f"and observation widths), and {size_in_words(left)} is available ({source}). {advice}"
     )
 
 

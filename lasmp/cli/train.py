@@ -125,7 +125,7 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
                 with atomic_open(log_dir / "config.yaml", "w") as f:
                     f.write(
                         config_header(first, last, "a warm start" if start else "a resume")
-                        + OmegaConf.to_yaml(to_plain(cfg))
+                        + OmegaConf.to_yaml(runner.full_config)  # to_plain(cfg), as the checkpoints keep it
                     )
             processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
             span = f" ({first}\u2013{last})" if cfg.runner.max_iterations else ""

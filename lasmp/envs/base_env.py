@@ -44,6 +44,22 @@ from lasmp.robots import a1
 class BaseEnv(VecEnv):
     cfg_class: type[BaseEnvCfg] = BaseEnvCfg  # the task's env config schema
     OBS_GROUPS: tuple[str, ...] = ()  # the observation groups the task's env hands out
+    # the critic's columns, run by run: each of these groups is one run of them (`column_runs`), then
+    # CRITIC_EXTRA columns the critic alone reads
+    CRITIC_RUNS: dict[str, int] = {}
+    CRITIC_EXTRA = 0
+
+    @classmethod
+    def build_model(cls, cfg):
+        """The task's MuJoCo model of `cfg` (a task builds its scene)."""
+        raise NotImplementedError
+
+    @classmethod
+    def observation_widths(cls, cfg) -> dict[str, int]:
+        """Each observation group's floats per env, as the env of `cfg` hands them out: what a memory
+        estimate counts without building an env (tests check them against a built env's)."""
+        widths = {**cls.CRITIC_RUNS, "critic": sum(cls.CRITIC_RUNS.values()) + cls.CRITIC_EXTRA}
+        return {**widths, "history": cfg.observations.history_length * OBS_DIM}
 
     @classmethod
     def check_cfg(cls, cfg) -> None:

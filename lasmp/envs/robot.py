@@ -38,6 +38,9 @@ from lasmp.envs.rotations import euler_zyx_from_mat, quat_to_mat, rotate_inv
 from lasmp.robots import a1
 
 OBS_DIM = 44  # o: accelerometer (3), gyro (3), roll & pitch (2), q - q_nominal (12), q_dot (12), a_{t-1} (12)
+X_IMP_DIM = (
+    29  # x_imp (`RobotIntrinsics.x_imp`): trunk mass (1), CoM shift (3), foot friction (1), Kp (12), Kd (12)
+)
 
 
 def sensor_columns(model: mujoco.MjModel, name: str) -> slice:

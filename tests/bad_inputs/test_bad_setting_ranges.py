@@ -130,11 +130,23 @@ def test_the_history_bound_is_what_the_estimators_convolutions_need():
 
 
 @pytest.mark.parametrize("task", TASKS)
-def test_each_env_hands_out_exactly_the_observation_groups_it_declares(task):
-    """The policy/task check reads OBS_GROUPS: it must be what the env gives."""
+def test_each_env_hands_out_exactly_the_observation_groups_and_widths_it_declares(task):
+    """The policy/task check reads OBS_GROUPS, the memory estimate `observation_widths` and the model
+    `build_model` makes (lasmp/cli/resources.py, no env built): they must be what a built env has."""
+    import mujoco
+
     cfg = composed(task)
-    env = registry.make_env(task, dataclasses.replace(cfg.env, num_envs=1))
-    assert sorted(env.get_observations().keys()) == sorted(registry.env_class(task).OBS_GROUPS)
+    one = dataclasses.replace(
+        cfg.env, num_envs=1, observations=dataclasses.replace(cfg.env.observations, history_length=17)
+    )
+    env = registry.make_env(task, one)
+    env_class = registry.env_class(task)
+    obs = env.get_observations()
+    assert sorted(obs.keys()) == sorted(env_class.OBS_GROUPS)
+    assert {k: v[0].numel() for k, v in obs.items()} == env_class.observation_widths(one)
+    assert obs["history"].shape[1:] == (17, obs["policy"].shape[1])
+    built = mujoco.MjData(env_class.build_model(one)).nbuffer
+    assert built == env.sim.batch.get_data(0).nbuffer > 0
 
 
 # -- through the training's entry point ---------------------------------------------------------------

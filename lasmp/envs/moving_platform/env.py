@@ -42,6 +42,7 @@ from lasmp.envs.moving_platform.state import StepState
 from lasmp.envs.rewards import RewardManager
 from lasmp.envs.robot import (
     OBS_DIM,
+    X_IMP_DIM,
     as_slice,
     proprioception,
     screen_faults,
@@ -69,15 +70,24 @@ class MovingPlatformEnv(BaseEnv):
     cfg_class = MovingPlatformCfg
     # the observation groups it hands out: what a policy may read (lasmp.config.train checks it at start-up)
     OBS_GROUPS = ("policy", "history", "priv_explicit", "priv_implicit", "alignment", "critic")
+    # the critic: [o, x_exp, x_imp, u_aln, p_body_p (3), phi_body_w (3)]
+    CRITIC_RUNS = {"policy": OBS_DIM, "priv_explicit": 13, "priv_implicit": X_IMP_DIM, "alignment": 3}
+    CRITIC_EXTRA = 6
+
+    @classmethod
+    def build_model(cls, cfg: MovingPlatformCfg):
+        return build_model(cfg.platform, cfg.sim)
 
     def __init__(self, cfg: MovingPlatformCfg, device="cpu"):
         self.check_cfg(cfg)
+        # the scene: the platform's nominal gains, its top, its model
+        self.gains = platform_gains(cfg.platform)
+        self.plf_top_m = platform_top_z_m(cfg.platform)
         model = build_model(cfg.platform, cfg.sim)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
         episode_s = cfg.trajectory.duration_s + cfg.trajectory.hold_s  # the reference holds after T
         super().__init__(cfg, model, 12, int(round(episode_s / dt_s)), device, index_class=SceneIndex)
         n, dev = self.num_envs, self.device
-        self.gains = platform_gains(cfg.platform)
         plf_act_pos, plf_act_vel = platform_actuator_ids(model)
         self.plf_act_pos = torch.as_tensor(plf_act_pos, device=dev)
         self.plf_act_vel = torch.as_tensor(plf_act_vel, device=dev)
@@ -118,16 +128,11 @@ class MovingPlatformEnv(BaseEnv):
         self.traj_level = np.full(n, -1)
 
         rc = cfg.rewards
-        self.plf_top_m = platform_top_z_m(cfg.platform)
         self.h_des_p_m = rc.h_des_p_m(self.plf_top_m)  # desired trunk height in the platform frame
         # the terms read h_des in the platform frame
         self.rewards = RewardManager(REWARD_TERMS, rc.weights, rc.in_platform_frame(self.plf_top_m), n, dev)
         self.plf_half_xy_m = self.tensor(cfg.platform.size_m[:2]) / 2.0
-        # every group is a run of the critic's columns [o, x_exp, x_imp, u_aln, p_body_p (3), phi_body_w (3)]
-        self.obs_columns = column_runs(
-            {"policy": OBS_DIM, "priv_explicit": 13, "priv_implicit": self.x_imp.shape[1], "alignment": 3},
-            whole="critic",
-        )
+        self.obs_columns = column_runs(self.CRITIC_RUNS, whole="critic")
 
         zeros = lambda *shape: torch.zeros((n, *shape), dtype=self.dtype, device=dev)  # noqa: E731
         self.tau_prev = zeros(12)

@@ -75,11 +75,11 @@ def platform_top_z_m(cfg: PlatformCfg) -> float:
 
 
 def build_spec(platform: PlatformCfg, sim: SimCfg) -> mujoco.MjSpec:
+    gains = platform_gains(platform)
     spec = robot_spec(sim, "lasmp_moving_platform")
     spec.visual.global_.offwidth = 1280
     spec.visual.global_.offheight = 720
 
-    gains = platform_gains(platform)
     body = spec.worldbody.add_body(name="platform", gravcomp=1.0)
     for name in PLATFORM_JOINTS:
         slide = name in ("plf_x", "plf_y", "plf_z")

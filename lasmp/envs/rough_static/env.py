@@ -33,6 +33,7 @@ from lasmp.envs.base_env import BaseEnv, column_runs
 from lasmp.envs.rewards import RewardManager
 from lasmp.envs.robot import (
     OBS_DIM,
+    X_IMP_DIM,
     RobotIntrinsics,
     RobotIntrinsicsWriter,
     RobotReadout,
@@ -56,6 +57,13 @@ class RoughStaticEnv(BaseEnv):
     cfg_class = RoughStaticCfg
     # the observation groups it hands out: what a policy may read (lasmp.config.train checks it at start-up)
     OBS_GROUPS = ("policy", "history", "priv_explicit", "priv_implicit", "command", "critic")
+    # the critic: [o, x_exp, x_imp, command, height (1), phi_body_w (3)]
+    CRITIC_RUNS = {"policy": OBS_DIM, "priv_explicit": 13, "priv_implicit": X_IMP_DIM, "command": 3}
+    CRITIC_EXTRA = 4
+
+    @classmethod
+    def build_model(cls, cfg: RoughStaticCfg):
+        return build_model(cfg.terrain, cfg.sim)[0]
 
     def __init__(self, cfg: RoughStaticCfg, device="cpu"):
         self.check_cfg(cfg)
@@ -66,11 +74,7 @@ class RoughStaticEnv(BaseEnv):
         self.writer = RobotIntrinsicsWriter(self.sim)
         self.intrinsics: RobotIntrinsics = nominal_robot_intrinsics(n)
         self.x_imp = self.tensor(self.intrinsics.x_imp())  # (n, 29) on the device, rows set at reset
-        # every group is a run of the critic's columns [o, x_exp, x_imp, command, height (1), phi_body_w (3)]
-        self.obs_columns = column_runs(
-            {"policy": OBS_DIM, "priv_explicit": 13, "priv_implicit": self.x_imp.shape[1], "command": 3},
-            whole="critic",
-        )
+        self.obs_columns = column_runs(self.CRITIC_RUNS, whole="critic")
         self.rewards = RewardManager(rw.REWARD_TERMS, cfg.rewards.weights, cfg.rewards, n, device=dev)
 
         zeros = lambda *shape: torch.zeros((n, *shape), dtype=self.dtype, device=dev)  # noqa: E731

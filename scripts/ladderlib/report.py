@@ -130,7 +130,7 @@ def figure(found: dict[str, dict[int, dict]], out: Path) -> Path:
             [sum(s[x] for s in series) / len(series) for x in shared],
             color=color,
             lw=2,
-            label=f"{RUNGS[name].label} ({len(runs)} seeds)",
+            label=f"{RUNGS[name].label} ({len(runs)} seed{'s' if len(runs) > 1 else ''})",
         )
     ax.axhline(0.029, color="k", ls="--", lw=1, label="the paper's LAS-MP (Xi_eval)")
     ax.set_xlabel("env-steps (millions)")

@@ -206,7 +206,7 @@ def test_the_new_rows_are_the_ladders_runs_played_at_their_best_checkpoint_by_va
     assert [(k, m, s) for k, m, s, _ in study.steps()][-6:] == [
         ("evaluate", m, s) for s in (20, 21, 22) for m in ("rows_plus", "rows_paper")
     ]
-    assert study.ROW_METHODS["rows_paper"] == ["recipe=paper"]
+    assert study.ROW_METHODS["rows_paper"] == ["recipe=paper", "runner.validation_episodes=1024"]
     with pytest.raises(
         SystemExit, match="the ladder trains the new rows: python scripts/ladder.py train rows_plus 20"
     ):

@@ -7,6 +7,7 @@ run before the ladder used them), the same seeds on every rung so that rungs com
                                                   # one whose machine was lost, from its snapshot: a warm start)
     python scripts/ladder.py collect RUNG SEED    # its curve, config, commands and light policies -> results/ladder/
     python scripts/ladder.py snapshot RUNG SEED   # a run still training: its newest policy checkpoint, curve, commands
+    python scripts/ladder.py queue RUNG:SEED ...  # train and collect each in turn; stops at a run that fails or is stopped
     python scripts/ladder.py table [--json]       # the table, from results/ladder/<rung>/seed<k>/validation.json
     python scripts/ladder.py figure [--out docs/figures/scaling.png]
 
@@ -202,6 +203,34 @@ def snapshot(name: str, seed: int) -> Path:
     return dest
 
 
+def _job(text: str) -> tuple[str, int]:
+    """RUNG:SEED, checked: a queue refuses a wrong job before its first run starts."""
+    name, _, seed = text.partition(":")
+    if name not in RUNGS or not seed.isdigit() or int(seed) not in RUNGS[name].seeds:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not RUNG:SEED of the ladder (e.g. base:10; `python scripts/ladder.py plan` lists them)"
+        )
+    return name, int(seed)
+
+
+def queue(jobs: list[tuple[str, int]]) -> int:
+    """Train each job in turn (a stopped run resumes) and collect it once finished (a collected run is
+    left as it is); the first that fails or is stopped ends the queue with its exit code."""
+    for name, seed in jobs:
+        stamp = datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+        print(f"{stamp} queue: {name} {seed}", flush=True)
+        code = train(name, seed)
+        if code:
+            print(
+                f"queue: {name} {seed} ended with exit code {code}; the runs after it did not start",
+                flush=True,
+            )
+            return code
+        if not (RESULTS / name / f"seed{seed}" / "validation.json").exists():
+            print(collect(name, seed), flush=True)
+    return 0
+
+
 def plan() -> None:
     for name, rung in RUNGS.items():
         for seed in rung.seeds:
@@ -231,6 +260,8 @@ def main(argv=None) -> int:
         s.add_argument("seed", type=_seed)
         if verb == "collect":
             s.add_argument("--force", action="store_true", help="replace a collected run")
+    q = sub.add_parser("queue", help="train and collect each RUNG:SEED in turn")
+    q.add_argument("jobs", nargs="+", type=_job, metavar="RUNG:SEED")
     t = sub.add_parser("table", help="the ladder's table (Markdown, or --json)")
     t.add_argument("--json", action="store_true")
     t.add_argument("--results", type=Path, default=RESULTS, help=argparse.SUPPRESS)
@@ -246,6 +277,8 @@ def main(argv=None) -> int:
         print(collect(args.rung, args.seed, args.force))
     elif args.cmd == "snapshot":
         print(snapshot(args.rung, args.seed))
+    elif args.cmd == "queue":
+        return queue(args.jobs)
     else:
         found = curves(args.results)
         if not found:

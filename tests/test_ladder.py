@@ -253,3 +253,34 @@ def test_the_new_rows_train_the_chosen_rung_and_the_papers_recipe_on_their_own_s
         ladder.train("rows_plus", 10)
     with pytest.raises(SystemExit, match="rung base trains seeds 10, 11, not 20"):
         ladder.collect("base", 20)
+
+
+def test_a_queue_trains_and_collects_each_run_in_turn_and_stops_at_one_that_fails(tmp_path, monkeypatch):
+    from testkit import TINY_CLI
+
+    ladder = load_script("scripts/ladder.py")
+    ladder.RUNS, ladder.RESULTS = tmp_path / "runs", tmp_path / "results"
+    tiny = (*TINY_CLI, "runner.validation_episodes=2")
+    monkeypatch.setitem(
+        ladder.RUNGS,
+        "base",
+        ladder.Rung("4 envs", "baseline", num_envs=4, overrides=tiny, samples=4 * 12 * 2),
+    )
+    bad = ladder.Rung("bad", "(b) rollout", num_envs=4, overrides=("env.bogus_key=1",))
+    monkeypatch.setitem(ladder.RUNGS, "steps24", bad)
+    assert ladder.queue([("base", 10), ("steps24", 10), ("base", 11)]) != 0
+    assert (tmp_path / "results" / "base" / "seed10" / "validation.json").exists()  # trained and collected
+    assert not (tmp_path / "runs" / "base" / "seed11").exists()  # after the failed run: not started
+    assert ladder.queue([("base", 10), ("base", 11)]) == 0  # a collected run is left as it is
+    assert (tmp_path / "results" / "base" / "seed11" / "policy_best.pt").exists()
+
+
+@pytest.mark.parametrize("job", ["base", "base:3", "nope:10", "rows_plus:10", "base:x"])
+def test_a_queue_refuses_a_job_that_is_not_a_rung_and_one_of_its_seeds_before_any_run(job):
+    out = subprocess.run(
+        [sys.executable, "scripts/ladder.py", "queue", "base:10", job],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode == 2 and "is not RUNG:SEED of the ladder" in out.stderr

@@ -177,13 +177,19 @@ def test_a_running_run_leaves_its_newest_policy_light_with_its_commands_and_an_u
         ladder.collect("base", 10)
 
 
-def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_saved(tmp_path, monkeypatch):
+def _tiny_ladder(tmp_path):
+    """scripts/ladder.py with its runs and results under tmp_path, and a rung of two iterations at the
+    test sizes (4 envs, 2 validation episodes)."""
     from testkit import TINY_CLI
 
     ladder = load_script("scripts/ladder.py")
     ladder.RUNS, ladder.RESULTS = tmp_path / "runs", tmp_path / "results"
     tiny = (*TINY_CLI, "runner.validation_episodes=2")
-    tiny_rung = ladder.Rung("4 envs", "baseline", num_envs=4, overrides=tiny, samples=4 * 12 * 2)
+    return ladder, ladder.Rung("4 envs", "baseline", num_envs=4, overrides=tiny, samples=4 * 12 * 2)
+
+
+def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_saved(tmp_path, monkeypatch):
+    ladder, tiny_rung = _tiny_ladder(tmp_path)
     monkeypatch.setitem(ladder.RUNGS, "base", tiny_rung)
     assert ladder.train("base", 10) == 0
     lines = (tmp_path / "runs" / "base" / "seed10.commands").read_text().splitlines()
@@ -215,12 +221,7 @@ def test_train_runs_a_rung_and_records_its_command_with_the_machine_once_it_has_
 def test_a_length_rung_goes_on_from_its_finished_run_in_its_own_directory_after_that_runs_commands(
     tmp_path, monkeypatch
 ):
-    from testkit import TINY_CLI
-
-    ladder = load_script("scripts/ladder.py")
-    ladder.RUNS, ladder.RESULTS = tmp_path / "runs", tmp_path / "results"
-    tiny = (*TINY_CLI, "runner.validation_episodes=2")
-    short = ladder.Rung("4 envs", "(a) batch", num_envs=4, overrides=tiny, samples=4 * 12 * 2)
+    ladder, short = _tiny_ladder(tmp_path)
     longer = dataclasses.replace(short, samples=4 * 12 * 4, continues="envs8192")
     monkeypatch.setitem(ladder.RUNGS, "envs8192", short)
     monkeypatch.setitem(ladder.RUNGS, "long8192", longer)
@@ -256,16 +257,8 @@ def test_the_new_rows_train_the_chosen_rung_and_the_papers_recipe_on_their_own_s
 
 
 def test_a_queue_trains_and_collects_each_run_in_turn_and_stops_at_one_that_fails(tmp_path, monkeypatch):
-    from testkit import TINY_CLI
-
-    ladder = load_script("scripts/ladder.py")
-    ladder.RUNS, ladder.RESULTS = tmp_path / "runs", tmp_path / "results"
-    tiny = (*TINY_CLI, "runner.validation_episodes=2")
-    monkeypatch.setitem(
-        ladder.RUNGS,
-        "base",
-        ladder.Rung("4 envs", "baseline", num_envs=4, overrides=tiny, samples=4 * 12 * 2),
-    )
+    ladder, tiny_rung = _tiny_ladder(tmp_path)
+    monkeypatch.setitem(ladder.RUNGS, "base", tiny_rung)
     bad = ladder.Rung("bad", "(b) rollout", num_envs=4, overrides=("env.bogus_key=1",))
     monkeypatch.setitem(ladder.RUNGS, "steps24", bad)
     assert ladder.queue([("base", 10), ("steps24", 10), ("base", 11)]) != 0

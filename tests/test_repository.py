@@ -35,14 +35,46 @@ def tracked(*folders: str) -> list[Path]:
     return [ROOT / n for n in names if n and (ROOT / n).is_file()]
 
 
-MAX_TRACKED_BYTES = 80 * 10**6  # a light clone: code, docs, the shipped policy, each run's records
+MAX_TRACKED_BYTES = 80 * 10**6  # a light clone: code, docs, the shipped policy, each study run's records
+LADDER = "results/ladder"  # the ladder's runs (scripts/ladder.py): a budget per run, not in the 80 MB
+MAX_LADDER_RUN_BYTES = 10**6  # a collected run: its light policy_best.pt, curve, config and commands
+MAX_SNAPSHOT_BYTES = 2 * 10**6  # a run still training: its newest policy checkpoint (with the critic)
 
 
-def test_the_tracked_tree_weighs_at_most_80_mb():
+def test_the_tracked_tree_outside_the_ladder_weighs_at_most_80_mb():
     """`git ls-files | xargs du -cb`: what a clone's work tree holds. A run adds its light policy (under
     1 MB); per-episode records are derived data (`python -m lasmp.eval.regenerate`)."""
-    total = sum(p.stat().st_size for p in tracked("."))
-    assert total <= MAX_TRACKED_BYTES, f"the tracked tree weighs {total / 1e6:.1f} MB, over 80 MB"
+    total = sum(p.stat().st_size for p in tracked(".") if LADDER not in p.relative_to(ROOT).as_posix())
+    assert total <= MAX_TRACKED_BYTES, (
+        f"the tracked tree outside {LADDER} weighs {total / 1e6:.1f} MB, over 80 MB"
+    )
+
+
+def test_each_ladder_run_adds_at_most_1_mb_and_only_planned_runs_are_tracked():
+    """The ladder's budget: a collected run adds at most 1 MB, a snapshot of one still training at most
+    2 MB (`python scripts/ladder.py snapshot`), and only the runs its plan names (scripts/ladderlib/rungs.py)
+    are there, so that the ladder adds at most 1 MB per planned run to the clone."""
+    from testkit import load_script
+
+    rungs = load_script("scripts/ladder.py").RUNGS
+    planned = {f"{name}/seed{seed}" for name, rung in rungs.items() for seed in rung.seeds}
+    runs: dict[str, dict[str, int]] = {}
+    for path in tracked(LADDER):
+        parts = path.relative_to(ROOT / LADDER).parts
+        if len(parts) < 3 or not parts[1].startswith("seed"):
+            continue  # the ladder's own notes and side experiments (warm_start_shock/)
+        part = "snapshot" if parts[2] == "in_progress" else "collected"
+        run = runs.setdefault(f"{parts[0]}/{parts[1]}", {"collected": 0, "snapshot": 0})
+        run[part] += path.stat().st_size
+    assert runs, f"git tracks no run under {LADDER}/"
+    assert set(runs) <= planned, f"runs the ladder does not plan: {sorted(set(runs) - planned)}"
+    over = [
+        f"{run} ({sizes[part]:,} bytes {part})"
+        for run, sizes in sorted(runs.items())
+        for part, cap in (("collected", MAX_LADDER_RUN_BYTES), ("snapshot", MAX_SNAPSHOT_BYTES))
+        if sizes[part] > cap
+    ]
+    assert not over, "ladder runs over their budget: " + ", ".join(over)
 
 
 def test_no_tracked_file_under_results_exceeds_5_mib():

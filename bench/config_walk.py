@@ -23,9 +23,8 @@ are not the config. Only returns of plain functions count, not of generators (th
 are yields).
 
 The return rule lets in any dataclass a config-carrying call returns, derived values included: at the
-default config the trajectories sampled from the trajectory config (`PiecewisePoly`, `SplineSpec`),
-the sampled robot and platform intrinsics, `PlatformGains`, `MemoryNeed`. `--config-classes` narrows
-it: a returned dataclass counts only if its class is one of the config's, the classes of the dataclass
+default config the sampled robot and platform intrinsics, `PlatformGains`, `MemoryNeed`.
+`--config-classes` narrows it: a returned dataclass counts only if its class is one of the config's, the classes of the dataclass
 instances in the TrainCfg tree that `to_train_cfg` builds from the composed config (built once before
 the walk, untraced); DictConfigs count as before. `dataclasses.replace` copies, OmegaConf's
 `to_object` and a resume's TrainCfg (`resumed_cfg`) still count.

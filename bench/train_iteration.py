@@ -28,7 +28,7 @@ from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
-from lasmp.cli.train import make_runner
+from lasmp.cli.build import make_runner
 from lasmp.config.train import register_configs, to_train_cfg
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -19,7 +19,7 @@ from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 from omegaconf.errors import ConfigKeyError
 
-from lasmp.cli.train import make_runner
+from lasmp.cli.build import make_runner
 from lasmp.config.checks import ConfigError, check_config
 from lasmp.config.train import (
     TASKS,

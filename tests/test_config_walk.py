@@ -47,3 +47,13 @@ def test_the_tiny_training_walks_its_config_from_main_through_the_config_module(
     assert report["stays"] > 0 and report["rooms"] == len(rooms)
     assert report["climbs_back"] == report["stays"] - report["rooms"]
     assert report["reached_learn"]  # followed up to LasmpRunner.learn, where the walk is cut
+
+
+def test_the_config_reaches_the_start_of_learning_in_at_most_20_stays_and_5_climbs_back(tmp_path):
+    """The house's goal for a training's way through the code (docs/layout.md): the config's own
+    classes followed from `main` to `LasmpRunner.learn` at the tiny sizes."""
+    done = run_script("bench/config_walk.py", "--config-classes", "--json", cwd=tmp_path)
+    report = json.loads(done.stdout)
+    assert report["reached_learn"]
+    way = " -> ".join(s["room"] for s in report["stays_sequence"])
+    assert report["stays"] <= 20 and report["climbs_back"] <= 5, way

@@ -19,6 +19,7 @@ LAYERS = (
     ("lasmp.cli.command_line",),
     ("lasmp.cli.sweep",),
     ("lasmp.cli.warm_start",),
+    ("lasmp.cli.build",),
     ("lasmp.cli.resume", "lasmp.cli.resources"),
     ("lasmp.eval", "lasmp.render"),
     ("lasmp.deploy",),

@@ -17,6 +17,7 @@ from omegaconf import OmegaConf
 from rsl_rl.utils.utils import resolve_class
 from testkit import tiny
 
+import lasmp.cli.build
 import lasmp.cli.train
 import lasmp.config.train
 from lasmp.algo.checkpoint import CheckpointError, read_checkpoint
@@ -61,7 +62,7 @@ def test_unknown_logger_is_refused_at_start_up_naming_the_field(tmp_path, monkey
     def no_env(*_):
         raise AssertionError("an env was built before the config was checked")
 
-    monkeypatch.setattr(lasmp.cli.train, "make_env", no_env)
+    monkeypatch.setattr(lasmp.cli.build, "make_env", no_env)
     run = tmp_path / "run"
     with pytest.raises(
         ConfigError, match=r"runner\.logger must be one of tensorboard \| wandb \| neptune, got 'mlflow'"

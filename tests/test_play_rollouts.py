@@ -138,7 +138,7 @@ def test_scenario_plays_the_real_motion_on_the_close_drive(run_dir, capsys, monk
 def test_policy_checkpoint_is_small_plays_the_same_and_refuses_to_resume(run_dir, tmp_path):
     from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint, read_checkpoint
     from lasmp.algo.checkpoint import main as ckpt_main
-    from lasmp.cli.train import make_runner
+    from lasmp.cli.build import make_runner
     from lasmp.config.train import to_train_cfg
     from lasmp.deploy import load_deploy_env
 

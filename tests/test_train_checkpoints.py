@@ -9,7 +9,8 @@ import torch
 from testkit import tiny
 
 from lasmp.algo.checkpoint import CheckpointError, latest_checkpoint, read_checkpoint
-from lasmp.cli.train import make_runner, train
+from lasmp.cli.build import make_runner
+from lasmp.cli.train import train
 
 
 def test_checkpoint_round_trip_and_exact_resume(tmp_path):

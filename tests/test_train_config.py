@@ -9,7 +9,8 @@ from omegaconf import OmegaConf
 from testkit import ROOT
 
 from lasmp.algo.checkpoint import read_checkpoint
-from lasmp.cli.train import make_runner, train
+from lasmp.cli.build import make_runner
+from lasmp.cli.train import train
 from lasmp.config.checks import ConfigError
 from lasmp.config.train import register_configs, to_train_cfg
 

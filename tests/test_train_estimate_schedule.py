@@ -13,7 +13,7 @@ from testkit import param_copy as params
 from testkit import runner_rollout as rollout
 
 from lasmp.algo.checkpoint import read_checkpoint
-from lasmp.cli.train import make_runner
+from lasmp.cli.build import make_runner
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES
 
 

@@ -8,7 +8,7 @@ import torch
 from testkit import runner_rollout as rollout
 from testkit import tiny
 
-from lasmp.cli.train import make_runner
+from lasmp.cli.build import make_runner
 from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES, GROUP_HISTORY
 
 

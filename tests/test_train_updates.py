@@ -15,7 +15,7 @@ from testkit import param_copy as params
 from testkit import runner_rollout as rollout
 from testkit import tiny
 
-from lasmp.cli.train import make_runner
+from lasmp.cli.build import make_runner
 from lasmp.modules.obs_groups import GROUP_HISTORY
 
 

@@ -10,7 +10,8 @@ from testkit import tiny
 
 from lasmp.algo.checkpoint import CheckpointError, policy_checkpoint, read_checkpoint
 from lasmp.algo.checkpoint.light import write_light
-from lasmp.cli.train import make_runner, train
+from lasmp.cli.build import make_runner
+from lasmp.cli.train import train
 from lasmp.cli.warm_start import WarmStart
 from lasmp.config.checks import ConfigError
 from lasmp.io.rundir import RunDirError

@@ -288,7 +288,7 @@ def bare_learner(tmp_path, algorithm=None, **over):
     """A PPOROA on a tiny env, built as rsl_rl's runner builds it, without a runner or a logger:
     (learner, env, steps per rollout)."""
     from lasmp.algo.ppo_roa import PPOROA
-    from lasmp.cli.train import make_env
+    from lasmp.cli.build import make_env
     from lasmp.config.train import rsl_rl_cfg
 
     cfg = tiny(tmp_path, **over)

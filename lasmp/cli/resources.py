@@ -1,7 +1,8 @@
-"""What a training needs to fit before anything is built or written: memory for its envs, rollouts and
-networks (every size setting, against every memory limit: `lasmp.io.memory`), disk for its
-first checkpoints. Why up front: allocating 100,000 envs takes minutes before it fails, and a disk too
-small fails at the first save, after the first iterations."""
+"""What a training needs to fit before it is allocated or written: memory for its envs, rollouts and
+networks (every size setting, against every memory limit: `lasmp.io.memory`), checked once the env's
+model is built and before its envs' data are allocated; disk for its first checkpoints. Why up front:
+allocating 100,000 envs takes minutes before it fails, and a disk too small fails at the first save,
+after the first iterations."""
 
 from __future__ import annotations
 
@@ -23,11 +24,13 @@ NUM_ACTIONS = 12  # the A1's joint targets, every task's action
 FLOAT_BYTES = 4  # the rollout storage, the observations and the networks are float32
 # a network's parameter is held four times over while learning: the weights, their gradient, Adam's two moments
 PARAM_COPIES = 4
+Built = tuple[mujoco.MjModel, dict[str, int]]  # an env's model and its observation groups' widths
 
 
-def env_bytes(cfg: TrainCfg) -> dict[str, int]:
+def env_bytes(cfg: TrainCfg, built: Built | None = None) -> dict[str, int]:
     """A lower bound of the memory one env of `cfg` takes, in bytes by part, from the task's model and
-    its declared observation widths (no env is built): the MuJoCo data's buffer of one env
+    its declared observation widths (`built`: the env's, as its construction hands them to its
+    `check_fit`; else made here, without an env): the MuJoCo data's buffer of one env
     (MjData.nbuffer: state, positions, velocities, contacts' space; the arena MuJoCo reserves on top is
     not counted, as it is touched only as needed), its observation (every group, float32;
     env.observations.history_length sets the history's), the two spare history buffers the env writes
@@ -35,9 +38,11 @@ def env_bytes(cfg: TrainCfg) -> dict[str, int]:
     that observation, the actions' sample, mean and std, and six scalars: reward, done, value,
     log-probability, return, advantage). The learner's update copies are left out: the bound only
     refuses what cannot fit."""
-    env_class = registry.env_class(cfg.task)
-    physics = mujoco.MjData(env_class.build_model(cfg.env)).nbuffer
-    widths = env_class.observation_widths(cfg.env)
+    if built is None:
+        env_class = registry.env_class(cfg.task)
+        built = env_class.build_model(cfg.env), env_class.observation_widths(cfg.env)
+    model, widths = built
+    physics = mujoco.MjData(model).nbuffer
     obs_floats = sum(widths.values())
     spares = 2 * widths["history"]
     step_floats = obs_floats + 3 * NUM_ACTIONS + 6
@@ -69,19 +74,19 @@ class MemoryNeed:
     per_env: dict[str, int]  # one env's parts (`env_bytes`)
     envs: int  # every env of every process
     networks: int  # every process's networks (`network_bytes`)
-    validation: int  # rank 0's validation env (lasmp.cli.train.make_validator: moving_platform, interval > 0)
+    validation: int  # rank 0's validation env (lasmp.cli.build.make_validator: moving_platform, interval > 0)
 
     @property
     def total(self) -> int:
         return self.envs + self.networks + self.validation
 
 
-def memory_need(cfg: TrainCfg, processes: int = 1) -> MemoryNeed:
+def memory_need(cfg: TrainCfg, processes: int = 1, built: Built | None = None) -> MemoryNeed:
     """What a training of `cfg` takes at least: every size setting counts (env.num_envs,
     runner.num_steps_per_env, the observation history, the networks' widths, the validation env's
     runner.validation_episodes). `processes`: the machine's ranks, each with its own envs and networks."""
     networks = network_bytes(cfg)
-    per_env = env_bytes(cfg)
+    per_env = env_bytes(cfg, built)
     one = sum(per_env.values())
     validating = cfg.runner.validation_interval > 0 and cfg.task == "moving_platform"
     played = one - per_env["rollout storage"]  # the validation env keeps no rollout
@@ -93,9 +98,12 @@ def memory_need(cfg: TrainCfg, processes: int = 1) -> MemoryNeed:
     )
 
 
-def check_memory(cfg: TrainCfg, processes: int = 1, *, available: tuple[int, str] | None = None) -> None:
-    """Refuse a training whose envs, rollout storage and networks cannot fit in memory before any env
-    is built, with the estimate (`memory_need`, a lower bound) and the limit it meets
+def check_memory(
+    cfg: TrainCfg, processes: int = 1, *, built: Built | None = None, available: tuple[int, str] | None = None
+) -> None:
+    """Refuse a training whose envs, rollout storage and networks cannot fit in memory before any env's
+    data is allocated (`built`: the model and observation widths of the env being built,
+    `lasmp.cli.build.make_env`; else made here), with the estimate (`memory_need`, a lower bound) and the limit it meets
     (`lasmp.io.memory.available_memory`, or `available` where given): allocating them would take minutes
     before failing. `processes`: this machine's ranks of a torchrun job. The cpu backend only (warp's
     envs live on the GPU)."""
@@ -104,7 +112,7 @@ def check_memory(cfg: TrainCfg, processes: int = 1, *, available: tuple[int, str
     found = available or available_memory()
     if found is None:
         return  # nothing to compare with
-    need = memory_need(cfg, processes)
+    need = memory_need(cfg, processes, built)
     left, source = found
     if need.total <= left:
         return

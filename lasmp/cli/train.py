@@ -1,4 +1,5 @@
-"""Build the env, the runner and train: the logic behind `train.py`.
+"""A training, as `train.py` runs it: check the config, check a resume or warm start whole, check the
+machine, claim the run directory, build (`lasmp.cli.build`), restore, learn, say how it ended.
 
 Run directories (`lasmp.io.rundir`): a training locks its directory; a new run is refused a directory
 that holds a run. A resume (`resume=`) continues a run as `lasmp.cli.resume` decides.
@@ -7,82 +8,30 @@ that holds a run. A resume (`resume=`) continues a run as `lasmp.cli.resume` dec
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import os
 from pathlib import Path
 
-import torch
 from omegaconf import OmegaConf
 
 from lasmp.algo import distributed as dp
 from lasmp.algo.checkpoint import CheckpointError
 from lasmp.algo.runner import LasmpRunner
 from lasmp.algo.stopping import TrainingFaulted, TrainingInterrupted
+from lasmp.cli.build import make_runner
 from lasmp.cli.command_line import explicit_keys, resume_command
 from lasmp.cli.preflight import training_environment_error
-from lasmp.cli.resources import check_disk_space, check_memory
+from lasmp.cli.resources import check_disk_space
 from lasmp.cli.resume import Resume, check_run_dir
 from lasmp.cli.run_directory import config_header, default_log_dir, finished_message, remove_failed_start
 from lasmp.cli.train_failures import RankLost, named, quiet_writer_threads
 from lasmp.cli.warm_start import WarmStart
 from lasmp.config.checks import ConfigError
 from lasmp.config.recipe import run_label
-from lasmp.config.train import TrainCfg, rsl_rl_cfg, to_plain, to_train_cfg
-from lasmp.envs import registry
+from lasmp.config.train import to_train_cfg
 from lasmp.envs.trajectories import TrajectoryFileError
 from lasmp.io.atomic import atomic_open
 from lasmp.io.errors import ErrorTable, run
-from lasmp.io.inputs import SEED_MAX
 from lasmp.io.rundir import RunDirError, claim
-
-
-def seed_everything(seed: int) -> None:
-    torch.manual_seed(seed)
-
-
-def make_env(cfg: TrainCfg):
-    """The task's env (`lasmp.envs.registry`), its tensors where its physics runs (cpu backend: the CPU,
-    even with the learner on a GPU; warp: `cfg.device`)."""
-    return registry.make_env(cfg.task, cfg.env, cfg.device)
-
-
-def make_runner(cfg: TrainCfg, log_dir: str | None, rank: int = 0) -> LasmpRunner:
-    """The env and the runner of `cfg`; in a data-parallel job, rank k's envs and torch streams are
-    seeded with seed + k (its own physics, trajectories and curriculum draws); the saved config keeps
-    the job's seed."""
-    if cfg.device.startswith("cuda") and not torch.cuda.is_available():
-        raise ConfigError(
-            f"device={cfg.device} but torch sees no CUDA device (install a CUDA build of torch)"
-        )
-    if cfg.torch_threads > 0:
-        torch.set_num_threads(cfg.torch_threads)
-    seed = (cfg.seed + rank) % (SEED_MAX + 1)  # a seed near 2**32 - 1 stays a valid seed on every rank
-    seed_everything(seed)
-    env = make_env(
-        cfg if rank == 0 else dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, seed=seed))
-    )
-    full_config = to_plain(cfg)
-    return LasmpRunner(
-        env,
-        rsl_rl_cfg(cfg),
-        log_dir=log_dir,
-        device=cfg.device,
-        full_config=full_config,
-        max_fault_fraction=cfg.runner.max_fault_fraction,
-        keep_full=cfg.runner.keep_full,
-        validator=make_validator(cfg, full_config) if rank == 0 else None,
-        validation_interval=cfg.runner.validation_interval,
-    )
-
-
-def make_validator(cfg: TrainCfg, full_config: dict):
-    """The in-training validator of a moving-platform run (None when validation is off, or for another
-    task: the validation benchmark is the moving platform's)."""
-    if cfg.runner.validation_interval == 0 or cfg.task != "moving_platform":
-        return None
-    from lasmp.eval.validation import Validator
-
-    return Validator(full_config, cfg.runner.validation_episodes)
 
 
 def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
@@ -98,8 +47,6 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
     if missing:
         raise ConfigError(missing)
     ranks = dp.ranks_from_env()  # torchrun: rank 0 alone holds the run directory, logs and saves
-    # an env.num_envs that cannot fit, refused before any allocation
-    check_memory(cfg, dp.local_world_size() if ranks.distributed else 1)
     if ranks.distributed:
         cfg.device = dp.rank_device(cfg.device, ranks)
         dp.setup(ranks, cfg.device)
@@ -111,7 +58,9 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
     owner = claim(log_dir, check_run_dir(log_dir, data)) if ranks.is_main else contextlib.nullcontext()
     say = print if ranks.is_main else (lambda *a, **k: None)
     with owner:
-        runner = make_runner(cfg, str(log_dir) if ranks.is_main else None, ranks.rank)
+        # the env's memory is checked before its envs' data are allocated (`lasmp.cli.build.make_env`)
+        processes = dp.local_world_size() if ranks.distributed else 1
+        runner = make_runner(cfg, str(log_dir) if ranks.is_main else None, ranks.rank, processes)
         for restoring in (resume, start):
             if restoring:
                 restoring.restore(runner, say)
@@ -127,10 +76,10 @@ def train(cfg, explicit: set[str] | None = None) -> LasmpRunner:
                         config_header(first, last, "a warm start" if start else "a resume")
                         + OmegaConf.to_yaml(runner.full_config)  # to_plain(cfg), as the checkpoints keep it
                     )
-            processes = f" x {ranks.world_size} processes" if ranks.distributed else ""
+            jobs = f" x {ranks.world_size} processes" if ranks.distributed else ""
             span = f" ({first}\u2013{last})" if cfg.runner.max_iterations else ""
             say(
-                f"training {cfg.task} / {run_label(cfg)}: {cfg.env.num_envs} envs{processes}, {cfg.runner.max_iterations} "
+                f"training {cfg.task} / {run_label(cfg)}: {cfg.env.num_envs} envs{jobs}, {cfg.runner.max_iterations} "
                 f"iterations{span}, logs in {log_dir}",
                 flush=True,
             )

@@ -156,10 +156,6 @@ class DomainRandCfg:
     train: DomainRandRanges = field(default_factory=DomainRandRanges)
     test: DomainRandRanges = field(default_factory=_test_ranges)
 
-    @property
-    def ranges(self) -> DomainRandRanges:
-        return self.train if self.split == "train" else self.test
-
     CHOICES = {"split": ("train", "test")}
 
 

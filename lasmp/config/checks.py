@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, fields, is_dataclass
 from typing import Any
 
@@ -27,7 +27,7 @@ class Bound:
     """The values a numeric setting may take, and the physical or computational reason for the limits:
     [lo, hi], or open at an end (`open_lo`: a scale or a time, where 0 means nothing). Every number of
     every config has one (a [low, high] pair is checked by `check_range`, a reward weight by
-    `lasmp.envs.rewards.check_reward_weights`); tests/bad_inputs/test_bad_setting_ranges.py walks them all."""
+    `check_named`); tests/bad_inputs/test_bad_setting_ranges.py walks them all."""
 
     lo: float
     hi: float
@@ -134,8 +134,9 @@ def check_config(cfg: Any, p: str) -> None:
     (`check_known_keys`) and numbers (`check_finite_values`), then every section's declared limits,
     then each section's own rules, in the tree's order. A section's class declares what its settings
     may be: BOUNDS (field -> Bound), RANGES (field -> the Bound of a [low, high] pair, `check_range`),
-    CHOICES (field -> the words it may be); and `check_rules(p)` holds what relates its fields or needs
-    code. This walk is the one place that checks them."""
+    CHOICES (field -> the words it may be), NAMED (a mapping field -> (the names its keys may be, the
+    Bound of each value, what a key is), `check_named`); and `check_rules(p)` holds what relates its
+    fields or needs code. This walk is the one place that checks them."""
     check_known_keys(cfg, p)
     check_finite_values(cfg, p)
     sections = list(_sections(cfg, p))
@@ -146,6 +147,8 @@ def check_config(cfg: Any, p: str) -> None:
             check_range(_key(path, name), getattr(section, name), bound)
         for name, words in getattr(kind, "CHOICES", {}).items():
             check_choice(_key(path, name), getattr(section, name), words)
+        for name, (names, bound, what) in getattr(kind, "NAMED", {}).items():
+            check_named(_key(path, name), getattr(section, name), names, bound, what)
     for path, section in sections:
         if hasattr(section, "check_rules"):
             section.check_rules(path)
@@ -158,6 +161,18 @@ def _sections(cfg: Any, p: str):
         value = getattr(cfg, f.name)
         if is_dataclass(value):
             yield from _sections(value, _key(p, f.name))
+
+
+def check_named(
+    key: str, values: Mapping[str, float], names: Collection[str], bound: Bound, what: str
+) -> None:
+    """Refuse a key of mapping `values` that is not one of `names` (listing them; `what` says what a key
+    is, e.g. "reward term"), or a value outside `bound`."""
+    unknown = sorted(set(values) - set(names))
+    if unknown:
+        raise ConfigError(f"{key}: unknown {what}(s) {unknown}; valid {what}s: {sorted(names)}")
+    for name, value in values.items():
+        bound.check(f"{key}.{name}", value)
 
 
 def check_choice(name: str, value: Any, words: tuple[str, ...]) -> None:

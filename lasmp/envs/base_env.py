@@ -27,7 +27,9 @@ from __future__ import annotations
 
 import warnings
 from abc import abstractmethod
+from collections.abc import Callable
 
+import mujoco
 import numpy as np
 import torch
 from rsl_rl.env import VecEnv
@@ -39,6 +41,10 @@ from lasmp.envs.robot import OBS_DIM, RobotIndex, as_slice
 from lasmp.envs.rotations import yaw_quat
 from lasmp.io.plainstate import PlainStateError, pack, unpack
 from lasmp.robots import a1
+
+# called by an env with its model and its observation groups' widths (`BaseEnv.observation_widths`)
+# before its envs' data are allocated: it raises to refuse what cannot fit (lasmp.cli.build.make_env)
+CheckFit = Callable[[mujoco.MjModel, dict[str, int]], None]
 
 
 class BaseEnv(VecEnv):
@@ -62,13 +68,14 @@ class BaseEnv(VecEnv):
         return {**widths, "history": cfg.observations.history_length * OBS_DIM}
 
     @classmethod
-    def check_cfg(cls, cfg) -> None:
-        """Refuse anything but the task's config dataclass: an env takes a config validated once, where
-        it was built (`lasmp.config.base.build_env_cfg`, `lasmp.config.train.to_train_cfg`), never a dict."""
-        if not isinstance(cfg, cls.cfg_class):
+    def check_cfg_class(cls, given: type) -> None:
+        """Refuse a config of any class (`given`) but the task's config dataclass: an env takes a config
+        validated once, where it was built (`lasmp.config.base.build_env_cfg`,
+        `lasmp.config.train.to_train_cfg`), never a dict."""
+        if not issubclass(given, cls.cfg_class):
             name = cls.cfg_class.__name__
             raise TypeError(
-                f"{cls.__name__} takes a validated {name}, got a {type(cfg).__name__}: build one with "
+                f"{cls.__name__} takes a validated {name}, got a {given.__name__}: build one with "
                 f"lasmp.config.base.build_env_cfg(overrides, schema={name})"
             )
 
@@ -80,7 +87,10 @@ class BaseEnv(VecEnv):
         max_episode_length: int,
         device="cpu",
         index_class: type[RobotIndex] = RobotIndex,
+        check_fit: CheckFit | None = None,
     ):
+        if check_fit is not None:  # the model is built; the envs' data are not allocated yet
+            check_fit(model, self.observation_widths(cfg))
         self.cfg = cfg
         self.sim = make_backend(cfg.backend, model, cfg.num_envs, cfg.sim, device)
         self.num_envs = cfg.num_envs
@@ -90,6 +100,8 @@ class BaseEnv(VecEnv):
         self.dtype = self.sim.dtype  # of the physics quantities (float64 on the CPU backend)
         self.dt_s = cfg.sim.dt_s * cfg.sim.decimation
         self.rng = np.random.default_rng(cfg.seed)
+        dr = cfg.domain_rand  # the table of ranges an env's intrinsics are drawn from at reset
+        self.intrinsic_ranges = dr.train if dr.split == "train" else dr.test
         # the A1: its addresses in the model (`index_class`: the robot's, or a task's extension with its
         # world's), its nominal stance, and the actions a_t and a_{t-1}
         self.index = index_class(model, self.device)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from lasmp.config.base import BaseEnvCfg
 from lasmp.config.checks import ConfigError
-from lasmp.envs.base_env import BaseEnv
+from lasmp.envs.base_env import BaseEnv, CheckFit
 from lasmp.envs.moving_platform.env import MovingPlatformEnv
 from lasmp.envs.rough_static.env import RoughStaticEnv
 
@@ -32,8 +32,8 @@ def env_schema(task: str) -> type[BaseEnvCfg]:
     return env_class(task).cfg_class
 
 
-def make_env(task: str, cfg: BaseEnvCfg, device: str = "cpu") -> BaseEnv:
+def make_env(task: str, cfg: BaseEnvCfg, device: str = "cpu", check_fit: CheckFit | None = None) -> BaseEnv:
     """The env of `task` on its validated config `cfg`. `device` is where the learner runs: the env's
     tensors live where its physics runs, on the CPU with the cpu backend (the runner moves
-    observations to the learner), on `device` with warp."""
-    return env_class(task)(cfg, device=device if cfg.backend == "warp" else "cpu")
+    observations to the learner), on `device` with warp. `check_fit`: `BaseEnv`'s."""
+    return env_class(task)(cfg, device=device if cfg.backend == "warp" else "cpu", check_fit=check_fit)

@@ -5,8 +5,9 @@ A term is a small pure function `term(state, cfg) -> (num_envs,)` of a task's st
 rewards config (the config entry that holds the weights and the terms' shape parameters: each
 parameter is declared there once and read by name). It returns its UNWEIGHTED value; the sign
 lives in the weight; every weighted term is multiplied by dt_s in the manager (legged_gym's
-convention). `check_reward_weights` is the one place where weights are checked against a task's
-registered terms: both tasks' reward configs and the manager call it.
+convention). Weights are checked against a task's registered terms by `check_reward_weights`: a
+task's rewards config declares it (`NAMED`, read by `lasmp.config.checks.check_config`), and the
+manager checks the weights it is given the same way.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from typing import Any
 
 import torch
 
-from lasmp.config.checks import Bound, ConfigError
+from lasmp.config.checks import Bound, check_named
 
 RewardFn = Callable[[Any, Any], torch.Tensor]  # (a task's step state, its rewards config) -> (n,)
 
@@ -40,16 +41,19 @@ def make_registry() -> tuple[dict[str, RewardFn], Callable]:
 def check_reward_weights(weights: Mapping[str, float], terms: Mapping[str, RewardFn], where: str) -> None:
     """Refuse a weight for a term that is not registered in `terms` (listing the valid names) or a
     weight outside `WEIGHT`; `where` names the weights in the message (e.g. `env.rewards.weights`)."""
-    unknown = sorted(set(weights) - set(terms))
-    if unknown:
-        raise ConfigError(f"{where}: unknown reward term(s) {unknown}; valid terms: {sorted(terms)}")
-    for name, weight in weights.items():
-        WEIGHT.check(f"{where}.{name}", weight)
+    check_named(where, weights, terms, WEIGHT, REWARD_TERM)
 
 
 # a term's weight: rsl_rl's PPO (its value loss, its clip) expects rewards of order 1 per step; at 1000 a
 # single term swamps every other and the value function's error swamps the policy gradient
 WEIGHT = Bound(-1000, 1000, "per step, before dt_s: rewards of order 1 keep PPO's value loss in scale")
+REWARD_TERM = "reward term"  # what a key of a rewards config's `weights` is, in messages
+
+
+def weights_of(terms: Mapping[str, RewardFn]) -> dict:
+    """A rewards config's NAMED entry (`lasmp.config.checks.check_config`): its `weights` name terms of
+    `terms`, each within WEIGHT."""
+    return {"weights": (terms, WEIGHT, REWARD_TERM)}
 
 
 def squared_norm(x: torch.Tensor) -> torch.Tensor:

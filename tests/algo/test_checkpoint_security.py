@@ -17,7 +17,8 @@ from tensordict import TensorDict
 from testkit import hostile_checkpoint, tiny
 
 from lasmp.algo.checkpoint import PLAIN_RUN_STATE_FORMAT, CheckpointError, convert_trusted, read_checkpoint
-from lasmp.cli.train import make_runner, train
+from lasmp.cli.build import make_runner
+from lasmp.cli.train import train
 from lasmp.config.train import register_configs
 from lasmp.envs.base_env import BaseEnv
 from lasmp.io.plainstate import PlainStateError, pack, unpack

@@ -9,7 +9,8 @@ from testkit import tiny
 
 from lasmp.algo import precision as prec
 from lasmp.algo.precision import cpu_has_fast_bf16, resolve_precision
-from lasmp.cli.train import make_runner, train
+from lasmp.cli.build import make_runner
+from lasmp.cli.train import train
 from lasmp.config.checks import ConfigError
 
 AVX2_ONLY = """processor\t: 0

@@ -20,7 +20,8 @@ from omegaconf import OmegaConf
 from testkit import tiny
 
 from lasmp.algo.checkpoint import atomic_torch_save, read_checkpoint
-from lasmp.cli.train import make_runner, train
+from lasmp.cli.build import make_runner
+from lasmp.cli.train import train
 from lasmp.io.plainstate import unpack
 
 ROOT = Path(__file__).resolve().parents[2]

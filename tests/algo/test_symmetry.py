@@ -13,7 +13,7 @@ from lasmp.modules.obs_groups import GROUP_DETACHED_ESTIMATES
 
 def _learner(tmp_path, epochs: int = 1, **symmetry):
     from lasmp.algo.ppo_roa import PPOROA
-    from lasmp.cli.train import make_env
+    from lasmp.cli.build import make_env
     from lasmp.config.train import rsl_rl_cfg
 
     algo = {"estimate_rollout_every": 1, "estimate_rollout_start": 0, "symmetry_cfg": symmetry}

@@ -12,7 +12,7 @@ from testkit import tiny
 
 from lasmp.algo.runner import LasmpRunner
 from lasmp.algo.validating import BEST_POLICY, VALIDATION_FILE
-from lasmp.cli.train import make_env, make_runner, make_validator
+from lasmp.cli.build import make_env, make_runner, make_validator
 from lasmp.config.train import rsl_rl_cfg, to_plain
 from lasmp.eval import benchmark as bm
 from lasmp.eval.validation import Score, Validator
@@ -125,7 +125,7 @@ def test_the_default_training_validates_on_the_moving_platform_only(tmp_path):
     off = make_runner(tiny(tmp_path / "b", runner={"validation_interval": 0}), None)
     assert off.validator is None and off.validation_interval == 0
     rough = dataclasses.replace(tiny(tmp_path / "c", runner={"validation_interval": 50}), task="rough_static")
-    assert make_validator(rough, {}) is None  # the validation benchmark is the moving platform's
+    assert make_validator(to_plain(rough)) is None  # the validation benchmark is the moving platform's
 
 
 @pytest.mark.parametrize("interval", [0, 3])

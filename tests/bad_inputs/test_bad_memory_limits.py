@@ -124,6 +124,38 @@ def test_the_estimate_counts_each_process_of_a_torchrun_job():
         check_memory(cfg, 4, available=(2 * one.total, "a mocked limit"))
 
 
+@pytest.mark.parametrize("task", ["moving_platform", "rough_static"])
+def test_an_env_hands_its_model_and_widths_to_the_memory_check_before_it_allocates_its_envs(
+    task, monkeypatch
+):
+    """`lasmp.cli.build.make_env`: the check sees the model the env is built on and the widths it
+    declares, the same figures the check makes alone, and a refusal stops the build before the backend
+    allocates anything."""
+    import mujoco
+
+    import lasmp.envs.base_env
+    from lasmp.envs import registry
+
+    cfg = config(f"task={task}", "env.num_envs=3")
+    env_class = registry.env_class(task)
+    seen = []
+
+    def refuse(model, widths):
+        seen.append((mujoco.MjData(model).nbuffer, widths))
+        raise ConfigError("refused by the check")
+
+    def no_backend(*_, **__):
+        raise AssertionError("the envs' data were allocated before the memory check")
+
+    monkeypatch.setattr(lasmp.envs.base_env, "make_backend", no_backend)
+    with pytest.raises(ConfigError, match="refused by the check"):
+        registry.make_env(task, cfg.env, check_fit=refuse)
+    alone = (mujoco.MjData(env_class.build_model(cfg.env)).nbuffer, env_class.observation_widths(cfg.env))
+    assert seen == [alone]
+    model, widths = env_class.build_model(cfg.env), env_class.observation_widths(cfg.env)
+    assert memory_need(cfg, built=(model, widths)) == memory_need(cfg)
+
+
 # -- this process's own limit (ulimit -v) --------------------------------------------------------
 UNDER_RLIMIT_AS = """
 import json, resource, sys

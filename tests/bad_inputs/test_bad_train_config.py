@@ -105,7 +105,7 @@ def test_an_env_count_that_cannot_fit_in_memory_is_refused_up_front_with_its_est
 MEASURE_ENV_GROWTH = """
 import dataclasses, json, os, sys
 from hydra import compose, initialize_config_dir
-from lasmp.cli.train import make_env
+from lasmp.cli.build import make_env
 from lasmp.config.train import register_configs, to_train_cfg
 from lasmp.cli.resources import env_bytes
 

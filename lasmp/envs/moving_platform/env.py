@@ -19,7 +19,7 @@ import torch
 from tensordict import TensorDict
 
 from lasmp.envs import trajectories as trj
-from lasmp.envs.base_env import BaseEnv, column_runs
+from lasmp.envs.base_env import BaseEnv, CheckFit, column_runs
 from lasmp.envs.curriculum import SharedCurriculum, WaypointCurriculum
 from lasmp.envs.moving_platform.cfg import MovingPlatformCfg
 from lasmp.envs.moving_platform.domain_rand import (
@@ -52,15 +52,15 @@ from lasmp.envs.robot import (
 from lasmp.envs.trajectories.device import DevicePoly
 
 
-def initial_pose(u: np.ndarray, init) -> tuple[np.ndarray, np.ndarray]:
+def initial_pose(u: np.ndarray, yaw_range_rad, xy_offset_max_m: float) -> tuple[np.ndarray, np.ndarray]:
     """The trunk's initial yaw (n,) in rad and xy offset (n, 2) in m from the platform's centre, from
-    three uniforms in [0, 1) per env (`u`, (n, 3)): yaw uniform in `init.yaw_range_rad`, the offset
-    uniform in the disc of radius `init.xy_offset_max_m` (0: at the centre)."""
-    lo, hi = init.yaw_range_rad
+    three uniforms in [0, 1) per env (`u`, (n, 3)): yaw uniform in `yaw_range_rad` (lo, hi), the offset
+    uniform in the disc of radius `xy_offset_max_m` (0: at the centre); the two are env.init_state's."""
+    lo, hi = yaw_range_rad
     yaw = lo + (hi - lo) * u[:, 0]
     xy = np.zeros((len(u), 2))
-    if init.xy_offset_max_m > 0:
-        rho = init.xy_offset_max_m * np.sqrt(u[:, 1])
+    if xy_offset_max_m > 0:
+        rho = xy_offset_max_m * np.sqrt(u[:, 1])
         angle = -np.pi + 2 * np.pi * u[:, 2]
         xy = np.stack([rho * np.cos(angle), rho * np.sin(angle)], axis=1)
     return yaw, xy
@@ -78,15 +78,17 @@ class MovingPlatformEnv(BaseEnv):
     def build_model(cls, cfg: MovingPlatformCfg):
         return build_model(cfg.platform, cfg.sim)
 
-    def __init__(self, cfg: MovingPlatformCfg, device="cpu"):
-        self.check_cfg(cfg)
+    def __init__(self, cfg: MovingPlatformCfg, device="cpu", check_fit: CheckFit | None = None):
+        self.check_cfg_class(type(cfg))
         # the scene: the platform's nominal gains, its top, its model
         self.gains = platform_gains(cfg.platform)
         self.plf_top_m = platform_top_z_m(cfg.platform)
         model = build_model(cfg.platform, cfg.sim)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
         episode_s = cfg.trajectory.duration_s + cfg.trajectory.hold_s  # the reference holds after T
-        super().__init__(cfg, model, 12, int(round(episode_s / dt_s)), device, index_class=SceneIndex)
+        super().__init__(
+            cfg, model, 12, int(round(episode_s / dt_s)), device, index_class=SceneIndex, check_fit=check_fit
+        )
         n, dev = self.num_envs, self.device
         plf_act_pos, plf_act_vel = platform_actuator_ids(model)
         self.plf_act_pos = torch.as_tensor(plf_act_pos, device=dev)
@@ -121,8 +123,9 @@ class MovingPlatformEnv(BaseEnv):
             else None
         )
         # host copy (files, plots, tracking); the step evaluates `traj_dev`
+        self.spline = trj.SplineSpec(tc.kind, tc.degree)  # the curve through the waypoints
         self.traj = trj.sample(
-            n, self.traj_ranges, self.rng, n_waypoints=self.traj_ranges.n_waypoints_min, spline=tc.spline
+            n, self.traj_ranges, self.rng, n_waypoints=self.traj_ranges.n_waypoints_min, spline=self.spline
         )
         self.traj_dev = DevicePoly(self.traj, dev, self.dtype)
         self.traj_level = np.full(n, -1)
@@ -263,8 +266,9 @@ class MovingPlatformEnv(BaseEnv):
         else:
             r = self.traj_ranges
             levels = self.rng.integers(r.n_waypoints_min, r.n_waypoints_max + 1, size=len(ids))
-        spline = self.cfg.trajectory.spline
-        return trj.sample(len(ids), self.traj_ranges, self.rng, n_waypoints=levels, spline=spline), levels
+        return trj.sample(
+            len(ids), self.traj_ranges, self.rng, n_waypoints=levels, spline=self.spline
+        ), levels
 
     def _reset_envs(self, ids: torch.Tensor, terminated: torch.Tensor, timed_out: torch.Tensor) -> dict:
         log = {}
@@ -285,7 +289,7 @@ class MovingPlatformEnv(BaseEnv):
             new_traj, levels, params, pose_u = self.episode_source.next_episodes(ids_h)
         else:
             if dr.enabled:
-                params = sample_intrinsics(n, dr.ranges, self.rng)
+                params = sample_intrinsics(n, self.intrinsic_ranges, self.rng)
             else:
                 params = nominal_intrinsics(n, self.cfg.platform.kd_factor_ref)
             new_traj, levels = self._next_trajectories(ids_h)
@@ -305,7 +309,7 @@ class MovingPlatformEnv(BaseEnv):
             if init.xy_offset_max_m > 0:
                 pose_u[:, 1] = self.rng.uniform(size=n)
                 pose_u[:, 2] = self.rng.uniform(size=n)
-        yaw, xy = initial_pose(pose_u, init)
+        yaw, xy = initial_pose(pose_u, init.yaw_range_rad, init.xy_offset_max_m)
         qpos = self._standing_qpos(xy, self.plf_top_m, yaw)  # on the platform's top (centred at the origin)
         qpos[:, self.index.plf_qpos] = 0.0
         self._reset_physics(ids, qpos)

@@ -259,9 +259,7 @@ class RewardsCfg:
 
     BOUNDS = REWARD_BOUNDS
     CHOICES = {"h_des_from": ("top", "centre"), "air_time_charge": tuple(AIR_TIME_CHARGES)}
-
-    def check_rules(self, p: str):
-        shared.check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
+    NAMED = shared.weights_of(REWARD_TERMS)
 
     def h_des_p_m(self, plf_top_m: float) -> float:
         """h_des in the platform frame (origin at its CoM), m: what rewards and metrics compare p_body_p,z to."""

@@ -29,7 +29,7 @@ import numpy as np
 import torch
 from tensordict import TensorDict
 
-from lasmp.envs.base_env import BaseEnv, column_runs
+from lasmp.envs.base_env import BaseEnv, CheckFit, column_runs
 from lasmp.envs.rewards import RewardManager
 from lasmp.envs.robot import (
     OBS_DIM,
@@ -65,11 +65,11 @@ class RoughStaticEnv(BaseEnv):
     def build_model(cls, cfg: RoughStaticCfg):
         return build_model(cfg.terrain, cfg.sim)[0]
 
-    def __init__(self, cfg: RoughStaticCfg, device="cpu"):
-        self.check_cfg(cfg)
+    def __init__(self, cfg: RoughStaticCfg, device="cpu", check_fit: CheckFit | None = None):
+        self.check_cfg_class(type(cfg))
         model, self.terrain = build_model(cfg.terrain, cfg.sim)
         dt_s = cfg.sim.dt_s * cfg.sim.decimation
-        super().__init__(cfg, model, 12, int(round(cfg.episode_length_s / dt_s)), device)
+        super().__init__(cfg, model, 12, int(round(cfg.episode_length_s / dt_s)), device, check_fit=check_fit)
         n, dev = self.num_envs, self.device
         self.writer = RobotIntrinsicsWriter(self.sim)
         self.intrinsics: RobotIntrinsics = nominal_robot_intrinsics(n)
@@ -182,7 +182,7 @@ class RoughStaticEnv(BaseEnv):
         ids_h = ids.cpu().numpy()  # the host draws below are per env
         dr = self.cfg.domain_rand
         if dr.enabled:
-            params = sample_robot_intrinsics(n, dr.ranges, self.rng)
+            params = sample_robot_intrinsics(n, self.intrinsic_ranges, self.rng)
             if self.cfg.study_rng_stream:  # unused draws: the stream of the study's R-S seeds (cfg.py)
                 self.rng.uniform(size=(n, 12))
         else:

@@ -121,6 +121,4 @@ class RewardsCfg:
     air_time_target_s: float = 0.5
 
     BOUNDS = REWARD_BOUNDS
-
-    def check_rules(self, p: str):
-        shared.check_reward_weights(self.weights, REWARD_TERMS, f"{p}.weights")
+    NAMED = shared.weights_of(REWARD_TERMS)

@@ -212,7 +212,7 @@ def episode_table(episodes: SuiteEpisodes, per_episode: dict[str, np.ndarray], i
 
     k = np.arange(episodes.num_episodes)
     scenario, robot = episodes.pairing(k)
-    yaw, _ = initial_pose(episodes.initial_pose_draws(k), init)
+    yaw, _ = initial_pose(episodes.initial_pose_draws(k), init.yaw_range_rad, init.xy_offset_max_m)
     table = {
         "episode": k,
         "scenario": np.array(episodes.names)[scenario],

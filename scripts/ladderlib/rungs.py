@@ -97,6 +97,7 @@ RUNGS = {
 # 11), the baseline's in 0.045 and 0.076, every other rung's seed 10 in 0.0535 or more; the rule and
 # the table: docs/scaling.md#the-rung-the-rows-take
 CHOSEN = "level2"
+CHOSEN_IN_A_ROW = "trunk level x2, ours"  # what the chosen rung changes, as the new row's name says it
 # a row's checkpoint is its best validation: on 1,024 episodes, not the ladder's 256, whose noise (about
 # +-0.015) made base seed 11's best (0.047 on 256) a 0.076 on all 2,000 (results/shipping/README.md)
 ROW_VALIDATION = ("runner.validation_episodes=1024",)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from ladderlib.rungs import CHOSEN_IN_A_ROW, ROW_SEEDS, RUNGS
 from ladderlib.rungs import RESULTS as LADDER_RESULTS
-from ladderlib.rungs import ROW_SEEDS, RUNGS
 
 ROOT = Path(__file__).resolve().parents[2]
 RUNS = ROOT / "runs" / "study"
@@ -51,7 +51,7 @@ PLUS_METHODS = {"lasmp_plus": [PLUS], **{f"plus_{a}": [PLUS, f"policy={a}"] for 
 ROW_BUDGET = RUNGS["rows_plus"].iterations  # 1,024 envs x 12 steps x 1,800 = 22.1 M env-steps
 ROW_METHODS = {m: list(RUNGS[m].overrides) for m in ("rows_plus", "rows_paper")}  # the ladder's rungs
 ROW_NAMES = {  # summary row -> its method
-    f"LAS-MP+, {ROW_BUDGET:,} it., seeds {ROW_SEEDS[0]}-{ROW_SEEDS[-1]}": "rows_plus",
+    f"LAS-MP+ ({CHOSEN_IN_A_ROW}), {ROW_BUDGET:,} it., seeds {ROW_SEEDS[0]}-{ROW_SEEDS[-1]}": "rows_plus",
     f"LAS-MP (paper's recipe), {ROW_BUDGET:,} it., seeds {ROW_SEEDS[0]}-{ROW_SEEDS[-1]}": "rows_paper",
 }
 LADDER = LADDER_RESULTS  # where the ladder collects a row's run

@@ -10,7 +10,7 @@ import torch
 from lasmp.algo.runner import LasmpRunner
 from lasmp.cli.resources import check_memory
 from lasmp.config.checks import ConfigError
-from lasmp.config.train import TrainCfg, rsl_rl_cfg, to_plain
+from lasmp.config.train import TrainCfg, rsl_rl_cfg, to_plain, validates
 from lasmp.envs import registry
 from lasmp.io.inputs import SEED_MAX
 
@@ -66,7 +66,7 @@ def make_validator(full_config: dict):
     its checkpoints keep): None when validation is off, or for another task (the validation benchmark
     is the moving platform's)."""
     runner = full_config.get("runner", {})
-    if not runner.get("validation_interval") or full_config.get("task") != "moving_platform":
+    if not validates(full_config.get("task"), runner.get("validation_interval") or 0):
         return None
     from lasmp.eval.validation import Validator
 

@@ -14,7 +14,7 @@ import mujoco
 
 from lasmp.algo.runner import LasmpRunner
 from lasmp.config.checks import ConfigError
-from lasmp.config.train import TrainCfg
+from lasmp.config.train import TrainCfg, validates
 from lasmp.envs import registry
 from lasmp.io.inputs import size_in_words
 from lasmp.io.memory import available_memory
@@ -88,7 +88,7 @@ def memory_need(cfg: TrainCfg, processes: int = 1, built: Built | None = None) -
     networks = network_bytes(cfg)
     per_env = env_bytes(cfg, built)
     one = sum(per_env.values())
-    validating = cfg.runner.validation_interval > 0 and cfg.task == "moving_platform"
+    validating = validates(cfg.task, cfg.runner.validation_interval)
     played = one - per_env["rollout storage"]  # the validation env keeps no rollout
     return MemoryNeed(
         per_env=per_env,

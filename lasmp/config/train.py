@@ -350,6 +350,11 @@ def rsl_rl_cfg(cfg: TrainCfg) -> dict[str, Any]:
     }
 
 
+def validates(task: str, validation_interval: int) -> bool:
+    """Whether a training validates as it goes: the validation benchmark is the moving platform's."""
+    return validation_interval > 0 and task == "moving_platform"
+
+
 def to_plain(cfg: TrainCfg) -> dict:
     return OmegaConf.to_container(OmegaConf.structured(cfg))
 
